@@ -1,0 +1,85 @@
+"""Signed distances to the tank's solids, read from the MJCF model (one source of truth).
+
+MJX contacts are off (they would run the constraint solver every substep, 5x slower per
+mjx-notes.md), so collisions are decided here, analytically: the hull is covered by a 3 x 3 grid of
+spheres, and the hull touches a solid when a sphere's centre is closer to it than the radius.
+Exact per sphere, so a thin obstacle that slips between two range beams is still caught.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+SOLID_GROUP = 1  # walls, floor and obstacles (assets/common.xml)
+
+# Spheres covering the 0.47 x 0.47 x 0.09 m hull box: centres on a 3 x 3 grid in the body x-y plane,
+# radius = distance from a grid point to the farthest corner of its cell (0.119 m), rounded up.
+HULL_SPHERE_CENTRES = np.array([[x, y, 0.0] for x in (-0.157, 0.0, 0.157) for y in (-0.157, 0.0, 0.157)],
+                               dtype=np.float32)
+HULL_SPHERE_RADIUS = 0.12
+
+
+class Solids(NamedTuple):
+    """Boxes and capsules of one scene (arrays with a leading solid axis; may be empty)."""
+    box_pos: jnp.ndarray      # (nb, 3)
+    box_rot: jnp.ndarray      # (nb, 3, 3) local -> world
+    box_half: jnp.ndarray     # (nb, 3)
+    cap_a: jnp.ndarray        # (nc, 3) segment end points
+    cap_b: jnp.ndarray        # (nc, 3)
+    cap_radius: jnp.ndarray   # (nc,)
+
+
+def solids_from_model(model: mujoco.MjModel, include_walls: bool = True) -> Solids:
+    """Collects the group-1 boxes and capsules; walls and floor are those named wall_* / floor."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    boxes, caps = [], []
+    for g in range(model.ngeom):
+        if model.geom_group[g] != SOLID_GROUP or model.geom_bodyid[g] != 0:
+            continue
+        name = model.geom(g).name
+        if not include_walls and (name.startswith("wall") or name == "floor"):
+            continue
+        pos, rot, size = data.geom_xpos[g].copy(), data.geom_xmat[g].reshape(3, 3).copy(), model.geom_size[g]
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            boxes.append((pos, rot, size.copy()))
+        elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            axis = rot[:, 2] * size[1]
+            caps.append((pos - axis, pos + axis, size[0]))
+        else:
+            raise ValueError(f"geom {name!r}: only boxes and capsules are supported as solids "
+                             "(mjx.ray misses cylinders)")
+    f32 = lambda x, shape: jnp.asarray(np.array(x, dtype=np.float32).reshape(shape))
+    return Solids(
+        box_pos=f32([b[0] for b in boxes], (-1, 3)), box_rot=f32([b[1] for b in boxes], (-1, 3, 3)),
+        box_half=f32([b[2] for b in boxes], (-1, 3)),
+        cap_a=f32([c[0] for c in caps], (-1, 3)), cap_b=f32([c[1] for c in caps], (-1, 3)),
+        cap_radius=f32([c[2] for c in caps], (-1,)))
+
+
+def signed_distance(solids: Solids, p: jnp.ndarray) -> jnp.ndarray:
+    """Smallest signed distance from point p (3,) to any solid; +inf when there is none."""
+    d = jnp.inf
+    if solids.box_pos.shape[0]:
+        local = jnp.einsum("nji,nj->ni", solids.box_rot, p[None] - solids.box_pos)
+        q = jnp.abs(local) - solids.box_half
+        outside = jnp.linalg.norm(jnp.maximum(q, 0.0), axis=-1)
+        inside = jnp.minimum(jnp.max(q, axis=-1), 0.0)
+        d = jnp.minimum(d, jnp.min(outside + inside))
+    if solids.cap_a.shape[0]:
+        ab = solids.cap_b - solids.cap_a
+        t = jnp.clip(jnp.sum((p[None] - solids.cap_a) * ab, -1) / jnp.sum(ab * ab, -1), 0.0, 1.0)
+        closest = solids.cap_a + t[:, None] * ab
+        d = jnp.minimum(d, jnp.min(jnp.linalg.norm(p[None] - closest, axis=-1) - solids.cap_radius))
+    return jnp.asarray(d, jnp.float32)
+
+
+def hull_clearance(solids: Solids, position: jnp.ndarray, rot: jnp.ndarray) -> jnp.ndarray:
+    """Gap (m) between the hull (sphere cover) and the nearest solid; negative means touching."""
+    centres = position[None] + jnp.asarray(HULL_SPHERE_CENTRES) @ rot.T
+    return jnp.min(jax.vmap(lambda c: signed_distance(solids, c))(centres)) - HULL_SPHERE_RADIUS

@@ -1,0 +1,240 @@
+"""The HUAUV navigation environment: pure `reset`, `reset_to` and `step` over an `EnvState` pytree.
+
+One control step (0.2 s) = sanitise the action, update the wind, run `substeps` physics steps
+(controller -> rotors -> medium wrench -> `mjx.step`), cast the active sensor fan once, then decide
+collision, bounds, arrival, reward and the observation.
+
+Observation layout (26 floats), see `OBS_LAYOUT`:
+    0-19  ranges / active sensor's maximum range (LIDAR 10 m in air, sonar 20 m underwater)
+    20-22 the action applied on this step, in [-1, 1] (zeros after reset)
+    23    bearing of the goal in the x-y plane relative to yaw, / pi, in [-1, 1]
+    24    elevation angle of the goal, / (pi / 2), in [-1, 1]
+    25    3-D distance to the goal / DIST_SCALE (the tank's diagonal), clipped to [0, 1]
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+from mujoco import mjx
+
+from docrl_jax.envs import geometry, physics, sensors
+from docrl_jax.envs.params import EnvParams
+
+OBS_SIZE = 26
+ACTION_SIZE = 3
+DIST_SCALE = float(np.sqrt(9.8**2 + 9.8**2 + 6.1**2))  # inner tank diagonal, 15.2 m
+OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 23, "elevation": 24,
+              "distance": 25}
+TANK_HALF_WIDTH = 4.9  # inner wall faces at x, y = +-4.9 (orig 1.2)
+
+
+@struct.dataclass
+class SimState:
+    """Internal state carried between steps (not part of the observation)."""
+    data: mjx.Data            # MuJoCo state of the scene
+    thrust: jax.Array         # (4,) rotor thrusts (N)
+    vel_integral: jax.Array   # (3,) controller integrator
+    wind: jax.Array           # (2,) horizontal wind (m/s)
+    goal: jax.Array           # (3,)
+    step: jax.Array           # () int32 steps since reset
+    key: jax.Array            # PRNG key for noise, wind and goal resampling
+
+
+@struct.dataclass
+class EnvState:
+    sim: SimState
+    obs: jax.Array            # (26,)
+    reward: jax.Array         # ()
+    done: jax.Array           # () bool
+    info: dict[str, Any]
+
+
+def _scene_path(scenario: int) -> str:
+    return str(resources.files("docrl_jax.assets") / f"scenario_{scenario}.xml")
+
+
+class HUAUVEnv:
+    """Build with `docrl_jax.envs.make(scenario, **overrides)`. Methods are pure and jit/vmap-safe."""
+
+    observation_size = OBS_SIZE
+    action_size = ACTION_SIZE
+
+    def __init__(self, params: EnvParams):
+        self.params = params
+        self.mj_model = mujoco.MjModel.from_xml_path(_scene_path(params.scenario))
+        self.mj_model.opt.timestep = params.physics_dt
+        self.mjx_model = mjx.put_model(self.mj_model)
+        self.body_id = self.mj_model.body("huauv").id
+        self.vehicle = physics.make_vehicle(self.mj_model.body_mass[self.body_id],
+                                            self.mj_model.body_inertia[self.body_id],
+                                            params.rotor_moment_constant)
+        self.solids = geometry.solids_from_model(self.mj_model)
+        self.obstacles = geometry.solids_from_model(self.mj_model, include_walls=False)
+        # Template with the static geoms placed (rays read their poses from Data).
+        self._data0 = jax.jit(mjx.forward)(self.mjx_model, mjx.make_data(self.mjx_model))
+        self._wind_every = max(1, int(round(params.wind_period / params.control_dt)))
+
+    @property
+    def control_dt(self) -> float:
+        return self.params.control_dt
+
+    # ------------------------------------------------------------------ sampling
+    def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, n=64):
+        """A free point for a start or goal: in air or water, clear of obstacles and walls."""
+        p = self.params
+        k_med, k_xy, k_z = jax.random.split(key, 3)
+        water = jax.random.uniform(k_med) < water_fraction
+        lo, hi = jnp.where(water, jnp.asarray(p.water_z), jnp.asarray(p.air_z_range))
+        half = TANK_HALF_WIDTH - p.wall_margin
+        xy = jax.random.uniform(k_xy, (n, 2), minval=-half, maxval=half)
+        z = jax.random.uniform(k_z, (n, 1), minval=lo, maxval=hi)
+        cand = jnp.concatenate([xy, z], -1)
+        ok = jax.vmap(lambda c: geometry.signed_distance(self.obstacles, c))(cand) >= p.goal_clearance
+        if avoid is not None:
+            ok &= jnp.linalg.norm(cand - avoid, axis=-1) >= min_distance
+        # Fallback if no candidate is valid (vanishingly rare): the tank centre column, known free.
+        fallback = jnp.where(water, jnp.array([0.0, 0.0, -0.6]), jnp.array([0.0, 0.0, 2.5]))
+        return jnp.where(jnp.any(ok), cand[jnp.argmax(ok)], fallback)
+
+    def sample_goal(self, key, position):
+        p = self.params
+        return self._sample_point(key, p.goal_water_fraction, position, p.min_goal_distance)
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, key: jax.Array) -> EnvState:
+        """Random start (air or water), random yaw, random goal; level, at rest."""
+        k_start, k_yaw, k_goal, k_rest = jax.random.split(key, 4)
+        start = self._sample_point(k_start, self.params.start_water_fraction)
+        yaw = jax.random.uniform(k_yaw, minval=-jnp.pi, maxval=jnp.pi)
+        return self.reset_to(k_rest, start, yaw, self.sample_goal(k_goal, start))
+
+    def reset_to(self, key: jax.Array, position, yaw, goal) -> EnvState:
+        """Vehicle at `position` with `yaw`, level and at rest, hovering thrust, heading for `goal`."""
+        p = self.params
+        position = jnp.asarray(position, jnp.float32)
+        goal = jnp.asarray(goal, jnp.float32)
+        yaw = jnp.asarray(yaw, jnp.float32)
+        k_wind, k_noise, k_next = jax.random.split(key, 3)
+        quat = jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
+        data = self._data0.replace(qpos=jnp.concatenate([position, quat]), qvel=jnp.zeros(6))
+        # Wind starts from the OU process's stationary distribution (std sigma / sqrt(1 - (1-theta)^2)).
+        wind_std = p.wind_sigma / np.sqrt(max(1.0 - (1.0 - p.wind_theta) ** 2, 1e-6))
+        wind = wind_std * jax.random.normal(k_wind, (2,)) if p.wind else jnp.zeros(2)
+        sim = SimState(data=data, thrust=physics.hover_thrust(p, self.vehicle, position[2]),
+                       vel_integral=jnp.zeros(3), wind=wind, goal=goal, step=jnp.zeros((), jnp.int32),
+                       key=k_next)
+        rot = physics.quat_to_mat(quat)
+        underwater = position[2] < 0.0
+        true_ranges = sensors.cast(p, self.mjx_model, data, self.body_id, position, rot, underwater)
+        ranges = sensors.add_noise(p, k_noise, true_ranges, underwater)
+        obs = self._observe(ranges, underwater, jnp.zeros(3), position, rot, goal)
+        false = jnp.zeros((), bool)
+        info = self._info(ranges, position, jnp.zeros(3), rot, goal, underwater, false, false, false, false,
+                          false, sim.step, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
+        return EnvState(sim=sim, obs=obs, reward=jnp.zeros(()), done=false, info=info)
+
+    # ------------------------------------------------------------------ step
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        p, veh, sim = self.params, self.vehicle, state.sim
+        key, k_wind, k_noise, k_goal = jax.random.split(sim.key, 4)
+
+        # 1. Action: non-finite entries count as zero (and are counted), then clip to [-1, 1].
+        action = jnp.asarray(action, jnp.float32)
+        finite = jnp.isfinite(action)
+        action = jnp.clip(jnp.where(finite, action, 0.0), -1.0, 1.0)
+        command = physics.command_from_action(p, action)
+
+        # 2. Wind: OU update once per wind period (orig 2.6).
+        wind = sim.wind
+        if p.wind:
+            updated = wind + p.wind_theta * (0.0 - wind) + p.wind_sigma * jax.random.normal(k_wind, (2,))
+            wind = jnp.where(sim.step % self._wind_every == 0, updated, wind)
+
+        # 3. Physics substeps.
+        dt = p.physics_dt
+
+        def substep(carry, _):
+            data, thrust, integral = carry
+            pos, rot = data.qpos[:3], physics.quat_to_mat(data.qpos[3:7])
+            vel, omega = data.qvel[:3], data.qvel[3:6]
+            frac = physics.submerged_fraction(pos[2], p.hull_height)
+            rotor_cmd, integral = physics.controller(p, veh, rot, vel, omega, frac, integral, command, dt)
+            thrust = physics.rotor_response(p, thrust, rotor_cmd, physics.rotor_limits(p, pos, rot), dt)
+            wrench = physics.medium_wrench(p, veh, rot, vel, omega, thrust, wind, frac, dt)
+            data = data.replace(xfrc_applied=data.xfrc_applied.at[self.body_id].set(wrench))
+            return (mjx.step(self.mjx_model, data), thrust, integral), None
+
+        prev_dist = jnp.linalg.norm(sim.goal - sim.data.qpos[:3])
+        (data, thrust, integral), _ = jax.lax.scan(substep, (sim.data, sim.thrust, sim.vel_integral), None,
+                                                   length=p.substeps)
+
+        # 4. Sensors, once per control step.
+        position, rot = data.qpos[:3], physics.quat_to_mat(data.qpos[3:7])
+        finite_state = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+        position = jnp.where(finite_state, position, sim.data.qpos[:3])
+        underwater = position[2] < 0.0
+        true_ranges = sensors.cast(p, self.mjx_model, data, self.body_id, position, rot, underwater)
+        ranges = sensors.add_noise(p, k_noise, true_ranges, underwater)
+
+        # 5. Events and reward (collision on the noise-free geometry).
+        lo, hi = p.bounds
+        collision = (jnp.min(true_ranges) < p.collision_distance) | (
+            geometry.hull_clearance(self.solids, position, rot) < 0.0)
+        out_of_bounds = (position[2] < lo) | (position[2] > hi)
+        terminated = collision | out_of_bounds | ~finite_state
+        dist = jnp.linalg.norm(sim.goal - position)
+        arrived = (dist < p.arrival_distance) & ~terminated
+        step = sim.step + 1
+        truncated = (step >= p.max_episode_steps) & ~terminated
+        reward = jnp.where(terminated, p.reward_collide,
+                           jnp.where(arrived, p.reward_arrive, jnp.where(truncated, p.reward_timeout, 0.0)))
+        if p.progress_reward_scale:
+            reward = reward + p.progress_reward_scale * (prev_dist - dist)
+        done = terminated | truncated
+        if p.terminate_on_arrival:
+            done = done | arrived
+            goal = sim.goal
+        else:
+            goal = jnp.where(arrived, self.sample_goal(k_goal, position), sim.goal)
+
+        obs = self._observe(ranges, underwater, action, position, rot, goal)
+        goals_reached = state.info["goals_reached"] + arrived.astype(jnp.int32)
+        bad_action = jnp.sum(~finite).astype(jnp.int32)
+        info = self._info(ranges, position, data.qvel[:3], rot, goal, underwater, arrived, terminated,
+                          truncated, collision, out_of_bounds, step, goals_reached, bad_action)
+        # A diverged physics state (never seen; guarded anyway) ends the episode without NaNs leaking out.
+        data = jax.tree.map(lambda new, old: jnp.where(finite_state, new, old), data, sim.data)
+        sim = SimState(data=data, thrust=jnp.where(finite_state, thrust, sim.thrust),
+                       vel_integral=jnp.where(finite_state, integral, sim.vel_integral), wind=wind, goal=goal,
+                       step=step, key=key)
+        return EnvState(sim=sim, obs=obs, reward=reward.astype(jnp.float32), done=done, info=info)
+
+    # ------------------------------------------------------------------ helpers
+    def _observe(self, ranges, underwater, action, position, rot, goal):
+        rel = goal - position
+        bearing = jnp.arctan2(rel[1], rel[0]) - physics.yaw_of(rot)
+        bearing = jnp.arctan2(jnp.sin(bearing), jnp.cos(bearing))
+        elevation = jnp.arctan2(rel[2], jnp.linalg.norm(rel[:2]))
+        dist = jnp.linalg.norm(rel)
+        obs = jnp.concatenate([ranges / sensors.max_range(self.params, underwater), action,
+                               jnp.stack([bearing / jnp.pi, elevation / (jnp.pi / 2),
+                                          jnp.minimum(dist / DIST_SCALE, 1.0)])])
+        return jnp.nan_to_num(obs).astype(jnp.float32)
+
+    @staticmethod
+    def _info(ranges, position, velocity, rot, goal, underwater, arrived, terminated, truncated, collision,
+              out_of_bounds, step, goals_reached, nonfinite_action):
+        return {
+            "ranges": ranges, "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot),
+            "goal": goal, "distance": jnp.linalg.norm(goal - position), "underwater": underwater,
+            "arrived": arrived, "terminated": terminated, "truncated": truncated, "collision": collision,
+            "out_of_bounds": out_of_bounds, "step": step, "goals_reached": goals_reached,
+            "nonfinite_action": nonfinite_action,
+        }

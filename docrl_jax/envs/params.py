@@ -1,0 +1,225 @@
+"""Every documented parameter of the HUAUV environment, with its source or reasoning.
+
+`EnvParams` is frozen and hashable: it is static configuration, read at trace time, so changing
+a value recompiles. `docrl_jax.envs.make(scenario, **overrides)` builds one and validates it.
+Sources: "orig" = the authors' released code (shared/research/original-code.md, section given),
+"paper" = the DoCRL paper, "issue" = the project's environment contract.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+Vec3 = tuple[float, float, float]
+
+
+def _doc(text: str, default: Any) -> Any:
+    return field(default=default, metadata={"doc": text})
+
+
+@dataclass(frozen=True)
+class EnvParams:
+    # ---------------------------------------------------------------- task
+    scenario: int = _doc("Tank layout: 1 empty, 2 four risers, 3 fifteen obstacles (orig 1.3).", 2)
+    control_dt: float = _doc("Seconds per agent step: 5 Hz, the rate of the original's sensors (orig 2.4).", 0.2)
+    physics_dt: float = _doc("Physics substep in seconds; must divide control_dt and be <= 0.01 "
+                             "(the original Gazebo max_step_size).", 0.01)
+    max_episode_steps: int = _doc("Steps before truncation (paper: 500).", 500)
+    arrival_distance: float = _doc("Goal reached when the 3-D distance is below this (paper c_d = 0.5 m).", 0.5)
+    collision_distance: float = _doc("Collision when the smallest range is below this (paper c_o = 0.5 m).", 0.5)
+    reward_arrive: float = _doc("Reward on arrival (paper r_arrive).", 100.0)
+    reward_collide: float = _doc("Reward on collision or leaving the vertical bounds (paper r_collide).", -10.0)
+    reward_timeout: float = _doc("Reward when the step limit is reached (paper: r_collide at ep = 500).", -10.0)
+    progress_reward_scale: float = _doc("Dense shaping: scale * (previous distance - distance) per step, "
+                                        "for ablations. 0 = the paper's binary reward.", 0.0)
+    terminate_on_arrival: bool = _doc("End the episode on arrival (evaluation). False = sample a new goal and "
+                                      "go on from where the vehicle is (training, as in the paper).", False)
+    z_bounds: tuple[float, float] | None = _doc(
+        "Vertical termination bounds (z_min, z_max). None = the original's (-1.1, 4.8), scenario 3 "
+        "(floor + 0.2, 4.8) (orig 1.2).", None)
+
+    # ---------------------------------------------------------------- starts and goals
+    start_water_fraction: float = _doc("Probability that a training start is underwater.", 0.5)
+    goal_water_fraction: float = _doc("Probability that a training goal is underwater (the original sampled "
+                                      "air goals only, orig 1.5, which cannot teach air-to-water).", 0.5)
+    goal_clearance: float = _doc("Starts and goals keep at least this distance (m) from every obstacle.", 1.0)
+    wall_margin: float = _doc("Starts and goals keep at least this distance (m) from the walls.", 0.6)
+    air_z_range: tuple[float, float] = _doc("Heights (m) of air starts/goals (orig goals: 0.5-3.9).", (0.5, 4.0))
+    water_z_range: tuple[float, float] | None = _doc(
+        "Depths (m) of underwater starts/goals. None = (z_min + 0.1, -0.3): the paper's evaluation "
+        "target sits at -1.0, 0.1 m above the bound.", None)
+    min_goal_distance: float = _doc("A sampled goal is at least this far (m) from the vehicle.", 1.0)
+
+    # ---------------------------------------------------------------- sensors
+    lidar_fov_deg: float = _doc("LIDAR fan: beams at linspace(-fov/2, fov/2, 20) from body x (orig 3.1).", 270.0)
+    lidar_min_range: float = _doc("LIDAR minimum range (m), UST-10LX (orig 3.1). Documented only: "
+                                  "closer returns are reported as measured so collisions are seen.", 0.5)
+    lidar_max_range: float = _doc("LIDAR maximum range (m); no hit reads this (orig 3.1).", 10.0)
+    sonar_fov_deg: float = _doc("Sonar fan width; 20 beams at linspace(-45, 45, 20) (orig 3.2).", 90.0)
+    sonar_max_range: float = _doc("Sonar maximum range (m); no hit reads this (orig 3.2).", 20.0)
+    sensor_noise_std: float = _doc("Std (m) of Gaussian range noise; 0 = noiseless (orig: 0).", 0.0)
+
+    # ---------------------------------------------------------------- command mapping (orig 2.3, 4.2)
+    max_forward_speed: float = _doc("a0 = -1..1 maps to forward speed 0..this (m/s).", 0.25)
+    max_vertical_speed: float = _doc("a1 = -1..1 maps to vertical speed -this..this (m/s).", 0.25)
+    max_yaw_change: float = _doc("a2 = -1..1 maps to dpsi -this..this: heading offset of the horizontal "
+                                 "velocity (rad) and yaw-rate reference (rad/s), as the original bridge.", 0.25)
+
+    # ---------------------------------------------------------------- low-level controller (orig 2.3)
+    vel_p_gain: float = _doc("Velocity loop gain (1/s): Lee K_v 4.7 / mass 2.077.", 2.26)
+    vel_i_gain: float = _doc("Velocity integral gain (1/s^2). Not in the original (which drifted 0.1 m/s "
+                             "under its buoyancy); added so the vehicle holds depth.", 1.0)
+    vel_i_limit: float = _doc("Clamp of the integral term's acceleration (m/s^2), anti-windup.", 3.0)
+    max_tilt_deg: float = _doc("Largest commanded tilt of the thrust axis (deg).", 30.0)
+    att_gain: Vec3 = _doc("Attitude gains (N m/rad), RotorS Lee attitude_gain (orig 2.3).", (2.0, 2.3, 0.15))
+    rate_gain: Vec3 = _doc("Body-rate gains (N m s/rad), RotorS Lee angular_rate_gain (orig 2.3).",
+                           (0.4, 0.52, 0.18))
+
+    # ---------------------------------------------------------------- rotors (orig 2.2)
+    rotor_max_thrust_air: float = _doc("Per-rotor thrust limit in air (N): 8.54858e-6 * 1838^2.", 28.9)
+    rotor_max_thrust_water: float = _doc(
+        "Per-rotor thrust limit in water (N). The same aerial rotors drive the vehicle underwater "
+        "(orig 2.5). A torque-limited motor spins sqrt(rho_w/rho_a) ~ 29x slower in water and so "
+        "reaches the same thrust (thrust and torque both scale with rho*omega^2).", 28.9)
+    rotor_tau_up: float = _doc("Rotor thrust time constant when rising (s), RotorS.", 0.0125)
+    rotor_tau_down: float = _doc("Rotor thrust time constant when falling (s), RotorS.", 0.025)
+    rotor_moment_constant: float = _doc("Yaw moment per newton of thrust (m), RotorS.", 0.016)
+
+    # ---------------------------------------------------------------- medium (orig 2.5, mjx-notes 2.3)
+    water_density: float = _doc("kg/m^3, UUV fluid_density (orig 2.5).", 1028.0)
+    air_density: float = _doc("kg/m^3, sea-level air.", 1.225)
+    hull_volume: float = _doc("Displaced volume (m^3), UUV plugin volume (orig 2.5): 0.5 N of buoyancy, "
+                              "2.5 % of the weight.", 5e-5)
+    hull_height: float = _doc("Height (m) over which buoyancy, drag and added mass blend in as the hull "
+                              "crosses z = 0 (UUV bounding box height 0.1).", 0.1)
+    added_mass: Vec3 = _doc("Translational added mass in water (kg, body axes), UUV (orig 2.5).", (1.93, 1.93, 1.93))
+    added_inertia: Vec3 = _doc("Rotational added inertia in water (kg m^2, body axes), UUV diagonal.",
+                               (0.0156, 0.03, 0.0166))
+    water_linear_drag: Vec3 = _doc("Linear drag in water (N s/m, body axes), UUV linear_damping with the "
+                                   "dissipative sign (orig 2.5).", (0.0125, 0.0125, 0.0499))
+    water_quadratic_drag: Vec3 = _doc(
+        "Quadratic drag in water (N s^2/m^2, body axes) = rho_w/2 * Cd * A * fill. Sides: Cd 1.0, "
+        "0.47 x 0.09 m, fill 0.4; top: Cd 1.17 (flat plate), 0.47 x 0.47 m, fill 0.3 (open frame). The "
+        "UUV values (0.0125) are ~1000x below any real body of this size.", (8.7, 8.7, 39.9))
+    water_angular_drag: Vec3 = _doc("Rotational drag in water (N m s/rad, body axes), UUV.", (0.0125, 0.0125, 0.0499))
+    air_linear_drag: Vec3 = _doc("Linear drag in air (N s/m, body axes): RotorS rotor drag at hover "
+                                 "(~0.25 N per m/s, orig 2.2), horizontal only.", (0.25, 0.25, 0.0))
+    air_quadratic_drag: Vec3 = _doc("Quadratic drag in air: water_quadratic_drag * rho_a/rho_w.",
+                                    (0.0104, 0.0104, 0.0475))
+    wind: bool = _doc("Horizontal Ornstein-Uhlenbeck wind acting in air only (orig 2.6).", True)
+    wind_theta: float = _doc("OU mean reversion per update (orig 2.6).", 0.15)
+    wind_sigma: float = _doc("OU noise per update (m/s) (orig 2.6).", 0.175)
+    wind_period: float = _doc("Seconds between wind updates (orig: 1 Hz).", 1.0)
+    water_current: Vec3 = _doc("Constant water current (m/s, world frame); the original's was zero.", (0.0, 0.0, 0.0))
+
+    # ------------------------------------------------------------------------------------------
+    @property
+    def substeps(self) -> int:
+        return int(round(self.control_dt / self.physics_dt))
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        if self.z_bounds is not None:
+            return tuple(self.z_bounds)
+        floor_top = -2.0 if self.scenario == 3 else -1.3
+        return (-1.1 if self.scenario != 3 else floor_top + 0.2, 4.8)
+
+    @property
+    def water_z(self) -> tuple[float, float]:
+        if self.water_z_range is not None:
+            return tuple(self.water_z_range)
+        return (self.bounds[0] + 0.1, -0.3)
+
+
+def param_docs() -> dict[str, str]:
+    """Name -> documentation of every parameter (used by error messages and the README)."""
+    return {f.name: f.metadata["doc"] for f in dataclasses.fields(EnvParams)}
+
+
+def _fail(name: str, value: Any, why: str) -> None:
+    raise ValueError(f"env parameter {name}={value!r}: {why}")
+
+
+def validate(p: EnvParams) -> EnvParams:
+    """Checks types and ranges; raises ValueError naming the parameter and what is allowed."""
+    fields = {f.name: f for f in dataclasses.fields(EnvParams)}
+    defaults = EnvParams()
+    for name in fields:
+        value, ref = getattr(p, name), getattr(defaults, name)
+        if isinstance(ref, bool):
+            if not isinstance(value, bool):
+                _fail(name, value, "must be a bool (true/false)")
+        elif isinstance(ref, int):
+            if isinstance(value, bool) or not isinstance(value, int):
+                _fail(name, value, "must be an integer")
+        elif isinstance(ref, float):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                _fail(name, value, "must be a finite number")
+        elif isinstance(ref, tuple) or ref is None:
+            if value is None and ref is None:
+                continue
+            n = len(ref) if isinstance(ref, tuple) else 2
+            if (not isinstance(value, (tuple, list)) or len(value) != n
+                    or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                               for v in value)):
+                _fail(name, value, f"must be a sequence of {n} finite numbers")
+    if p.scenario not in (1, 2, 3):
+        _fail("scenario", p.scenario, "valid scenarios are 1, 2, 3")
+    if not 0 < p.physics_dt <= 0.01:
+        _fail("physics_dt", p.physics_dt, "must be in (0, 0.01] s")
+    if p.control_dt <= 0 or abs(p.substeps * p.physics_dt - p.control_dt) > 1e-9:
+        _fail("control_dt", p.control_dt, f"must be a positive multiple of physics_dt={p.physics_dt}")
+    positive = ["max_episode_steps", "arrival_distance", "lidar_max_range", "sonar_max_range", "vel_p_gain",
+                "rotor_max_thrust_air", "rotor_max_thrust_water", "rotor_tau_up", "rotor_tau_down",
+                "water_density", "air_density", "hull_height", "wind_period", "lidar_fov_deg", "sonar_fov_deg",
+                "max_forward_speed", "max_vertical_speed", "max_yaw_change", "max_tilt_deg"]
+    for name in positive:
+        if getattr(p, name) <= 0:
+            _fail(name, getattr(p, name), "must be > 0")
+    nonneg = ["collision_distance", "progress_reward_scale", "goal_clearance", "wall_margin", "lidar_min_range",
+              "sensor_noise_std", "vel_i_gain", "vel_i_limit", "rotor_moment_constant", "hull_volume",
+              "wind_theta", "wind_sigma", "min_goal_distance"]
+    for name in nonneg:
+        if getattr(p, name) < 0:
+            _fail(name, getattr(p, name), "must be >= 0")
+    for name in ["att_gain", "rate_gain", "added_mass", "added_inertia", "water_linear_drag",
+                 "water_quadratic_drag", "water_angular_drag", "air_linear_drag", "air_quadratic_drag"]:
+        if any(v < 0 for v in getattr(p, name)):
+            _fail(name, getattr(p, name), "entries must be >= 0")
+    for name in ["start_water_fraction", "goal_water_fraction"]:
+        if not 0.0 <= getattr(p, name) <= 1.0:
+            _fail(name, getattr(p, name), "must be a probability in [0, 1]")
+    if p.max_tilt_deg >= 80:
+        _fail("max_tilt_deg", p.max_tilt_deg, "must be below 80 degrees")
+    if p.lidar_fov_deg > 360 or p.sonar_fov_deg > 360:
+        _fail("lidar_fov_deg/sonar_fov_deg", (p.lidar_fov_deg, p.sonar_fov_deg), "must be <= 360")
+    lo, hi = p.bounds
+    if not lo < 0 < hi:
+        _fail("z_bounds", p.z_bounds, "must satisfy z_min < 0 (the surface) < z_max")
+    for name, (a, b) in (("air_z_range", p.air_z_range), ("water_z_range", p.water_z)):
+        if not a <= b:
+            _fail(name, (a, b), "must be (low, high) with low <= high")
+    if not (p.air_z_range[0] > 0 and p.air_z_range[1] < hi):
+        _fail("air_z_range", p.air_z_range, f"must lie in (0, z_max={hi})")
+    wz = p.water_z
+    if not (wz[0] > lo and wz[1] < 0):
+        _fail("water_z_range", wz, f"must lie in (z_min={lo}, 0)")
+    return p
+
+
+def make_params(scenario: int = 2, **overrides: Any) -> EnvParams:
+    """EnvParams for `scenario` with keyword overrides; unknown names raise ValueError listing valid ones."""
+    valid = param_docs()
+    unknown = sorted(set(overrides) - set(valid))
+    if unknown:
+        raise ValueError(f"unknown env parameter(s) {unknown}; valid names: {sorted(valid)}")
+    clean = {k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()}
+    # Accept ints where floats are documented (e.g. wind_sigma=1), reject other types in validate().
+    defaults = EnvParams()
+    for k, v in list(clean.items()):
+        if isinstance(getattr(defaults, k), float) and isinstance(v, int) and not isinstance(v, bool):
+            clean[k] = float(v)
+    return validate(EnvParams(scenario=scenario, **clean))
