@@ -86,7 +86,7 @@ class HUAUVEnv:
         return self.params.control_dt
 
     # ------------------------------------------------------------------ sampling
-    def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, n=64):
+    def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, max_distance=np.inf, n=64):
         """A free point for a start or goal: in air or water, clear of obstacles and walls."""
         p = self.params
         k_med, k_xy, k_z = jax.random.split(key, 3)
@@ -98,14 +98,15 @@ class HUAUVEnv:
         cand = jnp.concatenate([xy, z], -1)
         ok = jax.vmap(lambda c: geometry.signed_distance(self.obstacles, c))(cand) >= p.goal_clearance
         if avoid is not None:
-            ok &= jnp.linalg.norm(cand - avoid, axis=-1) >= min_distance
+            gap = jnp.linalg.norm(cand - avoid, axis=-1)
+            ok &= (gap >= min_distance) & (gap <= max_distance)
         # Fallback if no candidate is valid (vanishingly rare): the tank centre column, known free.
         fallback = jnp.where(water, jnp.array([0.0, 0.0, -0.6]), jnp.array([0.0, 0.0, 2.5]))
         return jnp.where(jnp.any(ok), cand[jnp.argmax(ok)], fallback)
 
     def sample_goal(self, key, position):
         p = self.params
-        return self._sample_point(key, p.goal_water_fraction, position, p.min_goal_distance)
+        return self._sample_point(key, p.goal_water_fraction, position, p.min_goal_distance, p.max_goal_distance)
 
     # ------------------------------------------------------------------ reset
     def reset(self, key: jax.Array) -> EnvState:

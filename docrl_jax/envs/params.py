@@ -52,6 +52,8 @@ class EnvParams:
         "Depths (m) of underwater starts/goals. None = (z_min + 0.1, -0.3): the paper's evaluation "
         "target sits at -1.0, 0.1 m above the bound.", None)
     min_goal_distance: float = _doc("A sampled goal is at least this far (m) from the vehicle.", 1.0)
+    max_goal_distance: float = _doc("A sampled goal is at most this far (m) from the vehicle (curricula, easy "
+                                    "tests); the default 100 never binds in the 10 m tank.", 100.0)
 
     # ---------------------------------------------------------------- sensors
     lidar_fov_deg: float = _doc("LIDAR fan: beams at linspace(-fov/2, fov/2, 20) from body x (orig 3.1).", 270.0)
@@ -182,6 +184,8 @@ def validate(p: EnvParams) -> EnvParams:
     nonneg = ["collision_distance", "progress_reward_scale", "goal_clearance", "wall_margin", "lidar_min_range",
               "sensor_noise_std", "vel_i_gain", "vel_i_limit", "rotor_moment_constant", "hull_volume",
               "wind_theta", "wind_sigma", "min_goal_distance"]
+    if p.max_goal_distance <= p.min_goal_distance:
+        _fail("max_goal_distance", p.max_goal_distance, f"must exceed min_goal_distance={p.min_goal_distance}")
     for name in nonneg:
         if getattr(p, name) < 0:
             _fail(name, getattr(p, name), "must be >= 0")

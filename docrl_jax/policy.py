@@ -1,0 +1,30 @@
+"""The acting contract shared by learned agents and baselines, used by the evaluator.
+
+A `Policy` is data plus pure functions, so a whole batch of evaluation trials runs as one
+`jit(vmap(scan))`:
+
+    carry = policy.init_carry()                                   # one env's memory (pytree)
+    carry, action = policy.act(policy.params, carry, obs, info, key)
+
+`obs` is the env's 26-float observation, `info` the env's info dict of the same step (a classical
+baseline such as BBA reads pose and ranges from it, as the original read odometry; learned policies
+ignore it), `key` a PRNG key (deterministic policies ignore it). `action` is in [-1, 1]^3. The
+carry is reset to `init_carry()` at the start of every trial.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+
+class RunDirError(ValueError):
+    """A run directory is missing, incomplete or incompatible; the message says which and why."""
+
+
+@dataclass(frozen=True)
+class Policy:
+    name: str
+    params: Any
+    init_carry: Callable[[], Any]
+    act: Callable[[Any, Any, Any, dict, Any], tuple[Any, Any]]
