@@ -73,7 +73,10 @@ class EnvParams:
     # ---------------------------------------------------------------- low-level controller (orig 2.3)
     vel_p_gain: float = _doc("Velocity loop gain (1/s): Lee K_v 4.7 / mass 2.077.", 2.26)
     vel_i_gain: float = _doc("Velocity integral gain (1/s^2). Not in the original (which drifted 0.1 m/s "
-                             "under its buoyancy); added so the vehicle holds depth.", 1.0)
+                             "under its buoyancy); absorbs what the buoyancy and drag feed-forward miss "
+                             "(wind, model error).", 1.0)
+    vel_i_band: float = _doc("The integral only accumulates while |velocity error| < this (m/s): "
+                             "conditional anti-windup, so command steps do not overshoot.", 0.03)
     vel_i_limit: float = _doc("Clamp of the integral term's acceleration (m/s^2), anti-windup.", 3.0)
     max_tilt_deg: float = _doc("Largest commanded tilt of the thrust axis (deg).", 30.0)
     att_gain: Vec3 = _doc("Attitude gains (N m/rad), RotorS Lee attitude_gain (orig 2.3).", (2.0, 2.3, 0.15))
@@ -182,7 +185,7 @@ def validate(p: EnvParams) -> EnvParams:
         if getattr(p, name) <= 0:
             _fail(name, getattr(p, name), "must be > 0")
     nonneg = ["collision_distance", "progress_reward_scale", "goal_clearance", "wall_margin", "lidar_min_range",
-              "sensor_noise_std", "vel_i_gain", "vel_i_limit", "rotor_moment_constant", "hull_volume",
+              "sensor_noise_std", "vel_i_gain", "vel_i_limit", "vel_i_band", "rotor_moment_constant", "hull_volume",
               "wind_theta", "wind_sigma", "min_goal_distance"]
     if p.max_goal_distance <= p.min_goal_distance:
         _fail("max_goal_distance", p.max_goal_distance, f"must exceed min_goal_distance={p.min_goal_distance}")

@@ -92,7 +92,8 @@ def controller(p: EnvParams, veh: Vehicle, rot, vel, omega, frac, integral, comm
     reference, and the horizontal velocity points at yaw + dpsi. We add an integral term (so
     buoyancy and drag do not leave a steady error) and make the loop gains medium-aware through the
     vehicle's depth (a pressure sensor on a real HUAUV): the effective mass and inertia include the
-    added mass in water, and the feed-forward thrust subtracts the expected buoyancy.
+    added mass in water, and feed-forward terms cancel the expected buoyancy and drag (translational
+    and yaw) at the commanded velocity.
 
     Returns (rotor thrust commands (4,), new integral (3,)).
     """
@@ -102,10 +103,17 @@ def controller(p: EnvParams, veh: Vehicle, rot, vel, omega, frac, integral, comm
     v_cmd = jnp.array([speed * jnp.cos(heading), speed * jnp.sin(heading), vz])
     err = v_cmd - vel
     i_lim = p.vel_i_limit / max(p.vel_i_gain, 1e-6)
-    integral = jnp.clip(integral + err * dt, -i_lim, i_lim)
+    # Conditional integration (anti-windup): only near the setpoint, so command steps do not wind it up.
+    integral = jnp.clip(integral + jnp.where(jnp.abs(err) < p.vel_i_band, err, 0.0) * dt, -i_lim, i_lim)
 
     m_eff = veh.mass + frac * float(np.mean(p.added_mass))
     force = m_eff * (p.vel_p_gain * err + p.vel_i_gain * integral)
+    # Feed-forward of the drag expected at the commanded velocity (air drag is tiny; water drag is not),
+    # so the integral only has to absorb model error and wind.
+    v_cmd_b = rot.T @ v_cmd
+    k_drag = (frac * (jnp.asarray(p.water_linear_drag) + jnp.asarray(p.water_quadratic_drag) * jnp.abs(v_cmd_b))
+              + (1.0 - frac) * (jnp.asarray(p.air_linear_drag) + jnp.asarray(p.air_quadratic_drag) * jnp.abs(v_cmd_b)))
+    force = force + rot @ (k_drag * v_cmd_b)
     # Feed-forward: weight minus the buoyancy the controller expects at its depth.
     buoyancy = frac * p.water_density * p.hull_volume * GRAVITY
     force = force + jnp.array([0.0, 0.0, veh.mass * GRAVITY - buoyancy])
@@ -127,6 +135,10 @@ def controller(p: EnvParams, veh: Vehicle, rot, vel, omega, frac, integral, comm
     inertia_eff = inertia + frac * jnp.asarray(p.added_inertia)
     torque = (inertia_eff / inertia) * (-jnp.asarray(p.att_gain) * e_rot - jnp.asarray(p.rate_gain) * e_omega)
     torque = torque + jnp.cross(omega, inertia * omega)
+    # Feed-forward of the water's rotational drag at the commanded yaw rate (same model as medium_wrench),
+    # so the yaw rate is tracked without steady error underwater.
+    k_yaw = p.water_angular_drag[2] * (1.0 + jnp.abs(dpsi))
+    torque = torque + jnp.array([0.0, 0.0, frac * k_yaw * dpsi])
     thrust = jnp.dot(force, rot[:, 2])
     rotor_cmd = jnp.asarray(veh.mixer_inv) @ jnp.concatenate([thrust[None], torque])
     return rotor_cmd, integral

@@ -1,0 +1,136 @@
+"""The environment's public contract: make(), parameters, shapes, action handling, determinism."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import docrl_jax.envs as envs
+from docrl_jax.envs import OBS_LAYOUT
+
+
+def test_make_rejects_unknown_names_listing_valid_ones():
+    with pytest.raises(ValueError, match="unknown env parameter.*sensor_noise_sdt.*valid names.*sensor_noise_std"):
+        envs.make(2, sensor_noise_sdt=0.1)
+
+
+@pytest.mark.parametrize("kwargs, fragment", [
+    ({"scenario": 4}, "valid scenarios are 1, 2, 3"),
+    ({"sensor_noise_std": -0.1}, "sensor_noise_std"),
+    ({"wind": "yes"}, "must be a bool"),
+    ({"physics_dt": 0.02}, r"physics_dt.*\(0, 0.01\]"),
+    ({"control_dt": 0.205}, "multiple of physics_dt"),
+    ({"goal_water_fraction": 1.5}, "probability"),
+    ({"max_episode_steps": 2.5}, "integer"),
+    ({"lidar_max_range": float("nan")}, "finite"),
+    ({"z_bounds": (1.0, 4.0)}, "z_min < 0"),
+    ({"added_mass": (1.0, 1.0)}, "3 finite numbers"),
+])
+def test_make_rejects_invalid_values(kwargs, fragment):
+    kwargs = dict(kwargs)
+    scenario = kwargs.pop("scenario", 2)
+    with pytest.raises(ValueError, match=fragment):
+        envs.make(scenario, **kwargs)
+
+
+def test_overrides_and_properties():
+    env = envs.make(3, sensor_noise_std=0.0, wind=False, max_episode_steps=100)
+    assert env.observation_size == 26 and env.action_size == 3
+    assert env.control_dt == pytest.approx(0.2)
+    assert env.params.substeps * env.params.physics_dt == pytest.approx(0.2)
+    assert env.params.physics_dt <= 0.01
+    assert env.params.bounds == (-1.8, 4.8)
+    assert env.mj_model.ngeom > 15
+    assert envs.make(1).params.bounds == (-1.1, 4.8)
+
+
+def test_eval_pairs_are_the_papers():
+    assert envs.eval_pair(1, "air_to_water") == ((0.0, 0.0, 2.5), (2.0, 3.0, -1.0))
+    assert envs.eval_pair(2, "water_to_air") == ((3.6, -2.4, -1.0), (0.0, 0.0, 2.5))
+    assert envs.eval_pair(3, "air_to_water")[1] == (3.6, -2.4, -1.0)
+    with pytest.raises(ValueError, match="valid directions"):
+        envs.eval_pair(2, "sideways")
+
+
+def test_reset_state_layout(env_fns):
+    env, reset_to, _ = env_fns(1, wind=False)
+    s = env.reset(jax.random.PRNGKey(3))
+    assert s.obs.shape == (26,) and s.reward.shape == () and s.done.shape == ()
+    for k, shape in {"ranges": (20,), "position": (3,), "goal": (3,), "yaw": (), "underwater": (),
+                     "arrived": (), "terminated": (), "truncated": (), "step": ()}.items():
+        assert s.info[k].shape == shape, k
+    assert np.all(np.asarray(s.obs[OBS_LAYOUT["prev_action"]]) == 0.0)
+    assert int(s.info["step"]) == 0 and not bool(s.done)
+
+
+def test_observation_fields_match_geometry(env_fns):
+    env, reset_to, _ = env_fns(1, wind=False)
+    # Goal straight ahead, 2 m away and 1 m up: bearing 0, elevation atan(1/2).
+    s = reset_to(jax.random.PRNGKey(0), jnp.array([0.0, 0.0, 2.0]), 0.5, jnp.array([2 * np.cos(0.5), 2 * np.sin(0.5), 3.0]))
+    assert float(s.obs[23]) == pytest.approx(0.0, abs=1e-5)
+    assert float(s.obs[24]) * np.pi / 2 == pytest.approx(np.arctan2(1.0, 2.0), abs=1e-5)
+    assert float(s.obs[25]) * envs.DIST_SCALE == pytest.approx(np.sqrt(5.0), abs=1e-4)
+    np.testing.assert_allclose(np.asarray(s.obs[:20]) * 10.0, np.asarray(s.info["ranges"]), atol=1e-5)
+    # Goal to the left (+y in the body frame) gives a positive bearing.
+    s = reset_to(jax.random.PRNGKey(0), jnp.array([0.0, 0.0, 2.0]), 0.0, jnp.array([0.0, 2.0, 2.0]))
+    assert float(s.obs[23]) == pytest.approx(0.5, abs=1e-5)
+
+
+def test_action_is_clipped_and_nonfinite_counted(env_fns):
+    env, reset_to, rollout = env_fns(1, wind=False)
+    s0 = reset_to(jax.random.PRNGKey(0), jnp.array([0.0, 0.0, 2.0]), 0.0, jnp.array([3.0, 3.0, 3.0]))
+    s, (obs, _, _, info) = rollout(s0, jnp.array([[5.0, jnp.nan, -jnp.inf]] * 3))
+    np.testing.assert_array_equal(np.asarray(obs[-1][OBS_LAYOUT["prev_action"]]), [1.0, 0.0, 0.0])
+    assert [int(n) for n in info["nonfinite_action"]] == [2, 2, 2]
+    assert np.all(np.isfinite(np.asarray(obs)))
+    # The non-finite entries act as zero: same result as the clean action.
+    s_clean, _ = rollout(s0, jnp.array([[1.0, 0.0, 0.0]] * 3))
+    np.testing.assert_allclose(np.asarray(s.info["position"]), np.asarray(s_clean.info["position"]), atol=1e-6)
+
+
+def test_same_key_same_trajectory_and_different_keys_differ(env_fns):
+    env, reset_to, rollout = env_fns(2)  # wind on: the key drives wind
+    acts = jax.random.uniform(jax.random.PRNGKey(9), (25, 3), minval=-1, maxval=1)
+    start = jnp.array([0.0, 0.0, 2.0])
+    reset = lambda k: reset_to(k, start, 0.3, jnp.array([3.0, 0.0, 1.0]))
+    _, (obs1, rew1, _, info1) = rollout(reset(jax.random.PRNGKey(5)), acts)
+    _, (obs2, rew2, _, info2) = rollout(reset(jax.random.PRNGKey(5)), acts)
+    _, (obs3, _, _, _) = rollout(reset(jax.random.PRNGKey(6)), acts)
+    np.testing.assert_array_equal(np.asarray(obs1), np.asarray(obs2))
+    np.testing.assert_array_equal(np.asarray(info1["position"]), np.asarray(info2["position"]))
+    assert not np.allclose(np.asarray(obs1), np.asarray(obs3))
+
+
+def test_jit_vmap_64_envs_long_random_rollouts_with_resets_stay_finite():
+    """jit + vmap over 64 envs with auto-reset: 400 steps of random, extreme and non-finite actions, in
+    scenario 3 with sensor noise. Nothing non-finite may come out, and episodes must end and restart."""
+    env = envs.make(3, auto_reset=True, sensor_noise_std=0.05)
+    n, t = 64, 400
+    keys = jax.random.split(jax.random.PRNGKey(2), n)
+    state = jax.jit(jax.vmap(env.reset))(keys)
+    assert state.obs.shape == (n, 26) and state.info["final_obs"].shape == (n, 26)
+    starts = np.asarray(state.info["position"])
+    assert 0 < np.sum(starts[:, 2] < 0) < n           # starts spread over both media
+
+    @jax.jit
+    def run(state, key):
+        def body(s, k):
+            k1, k2 = jax.random.split(k)
+            a = jax.random.uniform(k1, (n, 3), minval=-3, maxval=3)
+            a = jnp.where(jax.random.uniform(k2, (n, 3)) < 0.01, jnp.nan, a)
+            s = jax.vmap(env.step)(s, a)
+            return s, (s.obs, s.reward, s.done, s.info["final_obs"], s.sim.data.qpos, s.info["terminated"],
+                       s.info["truncated"], s.info["step"])
+        return jax.lax.scan(body, state, jax.random.split(key, t))
+
+    state, (obs, rew, done, final_obs, qpos, term, trunc, steps) = run(state, jax.random.PRNGKey(3))
+    assert obs.shape == (t, n, 26) and rew.shape == (t, n) and done.shape == (t, n)
+    for name, x in {"obs": obs, "reward": rew, "final_obs": final_obs, "qpos": qpos}.items():
+        assert np.all(np.isfinite(np.asarray(x))), name
+    assert np.all(np.abs(np.asarray(obs)) <= 1.0 + 1e-6)
+    assert int(done.sum()) > 0 and int(term.sum()) > 0
+    assert not np.any(np.asarray(term) & np.asarray(trunc))
+    assert set(np.unique(np.asarray(rew)).round(3)) <= {0.0, 100.0, -10.0}
+    # After a done the next transition starts a fresh episode (step counter back to 1).
+    d, st = np.asarray(done), np.asarray(steps)
+    assert np.all(st[1:][d[:-1]] == 1)
