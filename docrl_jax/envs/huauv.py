@@ -86,7 +86,7 @@ class HUAUVEnv:
         return self.params.control_dt
 
     # ------------------------------------------------------------------ sampling
-    def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, max_distance=np.inf, n=64):
+    def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, max_distance=np.inf, n=32):
         """A free point for a start or goal: in air or water, clear of obstacles and walls."""
         p = self.params
         k_med, k_xy, k_z = jax.random.split(key, 3)

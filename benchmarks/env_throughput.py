@@ -1,0 +1,122 @@
+"""Environment throughput: control steps per second and simulated seconds per wall second.
+
+    python benchmarks/env_throughput.py                       # scenario 2, 1,024 ... 65,536 envs
+    python benchmarks/env_throughput.py --num-envs 4096 --repeats 3 --out /tmp/res
+
+Each timed call is one jitted `lax.scan` of `--steps` control steps over `vmap`ped envs (random
+actions drawn inside the program, sensors on). Variants: `autoreset` (the training setting: every
+step also computes a fresh reset for the envs that finish) and `plain` (env.step alone). Compile time
+is measured separately (lower + compile), then the median of `--repeats` timed calls is reported.
+Writes env_throughput.json and env_throughput.md into --out (default benchmarks/results/).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+
+import docrl_jax.envs as envs
+
+
+def gpu_name() -> str:
+    try:
+        out = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True,
+                             text=True, timeout=20)
+        return out.stdout.strip().splitlines()[0] if out.returncode == 0 and out.stdout.strip() else "none"
+    except (OSError, subprocess.TimeoutExpired):
+        return "none"
+
+
+def versions() -> dict:
+    import flax
+    import mujoco
+    from mujoco import mjx  # noqa: F401
+    from importlib.metadata import version
+    return {"python": platform.python_version(), "jax": jax.__version__, "jaxlib": version("jaxlib"),
+            "mujoco": mujoco.__version__, "mujoco-mjx": version("mujoco-mjx"), "flax": flax.__version__}
+
+
+def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str) -> dict:
+    env = envs.make(scenario, auto_reset=(variant == "autoreset"))
+    reset = jax.jit(jax.vmap(env.reset))
+
+    def rollout(state, key):
+        def body(s, k):
+            a = jax.random.uniform(k, (num_envs, 3), minval=-1.0, maxval=1.0)
+            s = jax.vmap(env.step)(s, a)
+            return s, s.reward.sum()
+        state, rewards = jax.lax.scan(body, state, jax.random.split(key, steps))
+        return state, rewards.sum()
+
+    state = reset(jax.random.split(jax.random.PRNGKey(0), num_envs))
+    jax.block_until_ready(state)
+    t0 = time.perf_counter()
+    compiled = jax.jit(rollout, donate_argnums=0).lower(state, jax.random.PRNGKey(1)).compile()
+    compile_s = time.perf_counter() - t0
+    state, _ = compiled(state, jax.random.PRNGKey(2))  # warm-up
+    jax.block_until_ready(state)
+    times = []
+    for r in range(repeats):
+        t0 = time.perf_counter()
+        state, total = compiled(state, jax.random.PRNGKey(3 + r))
+        jax.block_until_ready(total)
+        times.append(time.perf_counter() - t0)
+    med = statistics.median(times)
+    sps = num_envs * steps / med
+    return {"scenario": scenario, "variant": variant, "num_envs": num_envs, "steps_per_call": steps,
+            "repeats": repeats, "compile_s": round(compile_s, 2), "call_s_median": round(med, 5),
+            "call_s_all": [round(t, 5) for t in times], "control_steps_per_s": round(sps),
+            "sim_seconds_per_s": round(sps * env.control_dt),
+            "physics_steps_per_s": round(sps * env.params.substeps)}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenario", type=int, default=2, choices=(1, 2, 3))
+    ap.add_argument("--num-envs", type=int, nargs="+", default=[1024, 4096, 16384, 65536])
+    ap.add_argument("--steps", type=int, default=100, help="control steps per timed call")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--variants", nargs="+", default=["autoreset", "plain"], choices=["autoreset", "plain"])
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
+    args = ap.parse_args(argv)
+    if any(n <= 0 for n in args.num_envs) or args.steps <= 0 or args.repeats <= 0:
+        ap.error("--num-envs, --steps and --repeats must be positive")
+
+    meta = {"command": " ".join([os.path.basename(sys.executable)] + sys.argv), "gpu": gpu_name(),
+            "device": str(jax.devices()[0]), "date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+            "versions": versions()}
+    print(json.dumps(meta), flush=True)
+    rows = []
+    for variant in args.variants:
+        for n in args.num_envs:
+            row = measure(args.scenario, n, args.steps, args.repeats, variant)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "env_throughput.json"), "w") as f:
+        json.dump({**meta, "results": rows}, f, indent=1)
+    lines = [f"# Environment throughput ({meta['gpu']}, {meta['date']})", "",
+             f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
+             "| variant | num_envs | compile (s) | control steps/s | simulated s / s | physics steps/s |",
+             "|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['variant']} | {r['num_envs']:,} | {r['compile_s']} | {r['control_steps_per_s']:,} | "
+                     f"{r['sim_seconds_per_s']:,} | {r['physics_steps_per_s']:,} |")
+    with open(os.path.join(args.out, "env_throughput.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
