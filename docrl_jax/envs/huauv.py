@@ -14,7 +14,6 @@ Observation layout (26 floats), see `OBS_LAYOUT`:
 
 from __future__ import annotations
 
-from importlib import resources
 from typing import Any
 
 import jax
@@ -26,6 +25,7 @@ from mujoco import mjx
 
 from docrl_jax.envs import geometry, physics, sensors
 from docrl_jax.envs.params import EnvParams
+from docrl_jax.resources import resource_dir
 
 OBS_SIZE = 26
 ACTION_SIZE = 3
@@ -57,7 +57,7 @@ class EnvState:
 
 
 def _scene_path(scenario: int) -> str:
-    return str(resources.files("docrl_jax.assets") / f"scenario_{scenario}.xml")
+    return str(resource_dir("assets") / f"scenario_{scenario}.xml")
 
 
 class HUAUVEnv:
