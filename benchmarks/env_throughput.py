@@ -46,8 +46,8 @@ def versions() -> dict:
             "mujoco": mujoco.__version__, "mujoco-mjx": version("mujoco-mjx"), "flax": flax.__version__}
 
 
-def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str) -> dict:
-    env = envs.make(scenario, auto_reset=(variant == "autoreset"))
+def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str, unroll: int | None = None) -> dict:
+    env = envs.make(scenario, auto_reset=(variant == "autoreset"), substep_unroll=unroll)
     reset = jax.jit(jax.vmap(env.reset))
 
     def rollout(state, key):
@@ -73,7 +73,7 @@ def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str
         times.append(time.perf_counter() - t0)
     med = statistics.median(times)
     sps = num_envs * steps / med
-    return {"scenario": scenario, "variant": variant, "num_envs": num_envs, "steps_per_call": steps,
+    return {"scenario": scenario, "variant": variant, "substep_unroll": env._unroll, "num_envs": num_envs, "steps_per_call": steps,
             "repeats": repeats, "compile_s": round(compile_s, 2), "call_s_median": round(med, 5),
             "call_s_all": [round(t, 5) for t in times], "control_steps_per_s": round(sps),
             "sim_seconds_per_s": round(sps * env.control_dt),
@@ -87,6 +87,8 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=100, help="control steps per timed call")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--variants", nargs="+", default=["autoreset", "plain"], choices=["autoreset", "plain"])
+    ap.add_argument("--unroll", type=int, nargs="+", default=[None],
+                    help="substep_unroll values to compare (default: the env's backend default)")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
     args = ap.parse_args(argv)
     if any(n <= 0 for n in args.num_envs) or args.steps <= 0 or args.repeats <= 0:
@@ -98,19 +100,20 @@ def main(argv=None) -> int:
     print(json.dumps(meta), flush=True)
     rows = []
     for variant in args.variants:
-        for n in args.num_envs:
-            row = measure(args.scenario, n, args.steps, args.repeats, variant)
-            rows.append(row)
-            print(json.dumps(row), flush=True)
+        for unroll in args.unroll:
+            for n in args.num_envs:
+                row = measure(args.scenario, n, args.steps, args.repeats, variant, unroll)
+                rows.append(row)
+                print(json.dumps(row), flush=True)
     os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "env_throughput.json"), "w") as f:
         json.dump({**meta, "results": rows}, f, indent=1)
     lines = [f"# Environment throughput ({meta['gpu']}, {meta['date']})", "",
              f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
-             "| variant | num_envs | compile (s) | control steps/s | simulated s / s | physics steps/s |",
-             "|---|---|---|---|---|---|"]
+             "| variant | unroll | num_envs | compile (s) | control steps/s | simulated s / s | physics steps/s |",
+             "|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['variant']} | {r['num_envs']:,} | {r['compile_s']} | {r['control_steps_per_s']:,} | "
+        lines.append(f"| {r['variant']} | {r['substep_unroll']} | {r['num_envs']:,} | {r['compile_s']} | {r['control_steps_per_s']:,} | "
                      f"{r['sim_seconds_per_s']:,} | {r['physics_steps_per_s']:,} |")
     with open(os.path.join(args.out, "env_throughput.md"), "w") as f:
         f.write("\n".join(lines) + "\n")

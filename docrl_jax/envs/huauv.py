@@ -80,6 +80,7 @@ class HUAUVEnv:
         # Template with the static geoms placed (rays read their poses from Data).
         self._data0 = jax.jit(mjx.forward)(self.mjx_model, mjx.make_data(self.mjx_model))
         self._wind_every = max(1, int(round(params.wind_period / params.control_dt)))
+        self._unroll = params.substep_unroll or (1 if jax.default_backend() == "cpu" else 5)
 
     @property
     def control_dt(self) -> float:
@@ -174,7 +175,7 @@ class HUAUVEnv:
 
         prev_dist = jnp.linalg.norm(sim.goal - sim.data.qpos[:3])
         (data, thrust, integral), _ = jax.lax.scan(substep, (sim.data, sim.thrust, sim.vel_integral), None,
-                                                   length=p.substeps)
+                                                   length=p.substeps, unroll=self._unroll)
 
         # 4. Sensors, once per control step.
         position, rot = data.qpos[:3], physics.quat_to_mat(data.qpos[3:7])
