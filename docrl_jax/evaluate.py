@@ -290,7 +290,7 @@ def parse_scenarios(text: str) -> list[int]:
     try:
         vals = [int(t) for t in text.split(",") if t.strip() != ""]
     except ValueError:
-        raise UsageError(f"--scenarios {text!r}: expected a comma-separated list of 1, 2, 3 (e.g. 1,2,3)") from None
+        raise UsageError(f"--scenarios {text!r}: valid scenarios are 1, 2, 3 (comma-separated, e.g. 1,2,3)") from None
     bad = [v for v in vals if v not in SCENARIOS]
     if not vals or bad:
         raise UsageError(f"--scenarios {text!r}: valid scenarios are 1, 2, 3 (comma-separated, e.g. 1,2,3)")
@@ -340,7 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0)")
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
                    help=f"env parameter override (repeatable); defaults here: {DEFAULT_EVAL_ENV}")
-    p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent")
+    p.add_argument("--bba-depth-phase", default="after", help="BBA only, order of the depth phase: after (default, the DoCRL script), first (the JINT copy), concurrent, in_air (climb first / descend last)")
     p.add_argument("--out", default="eval_out", help="output directory (default ./eval_out)")
     p.add_argument("--figures", type=int, default=10, metavar="K",
                    help="trajectories drawn per figure (0 = no trajectory figures; default 10)")

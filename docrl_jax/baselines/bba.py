@@ -50,7 +50,9 @@ Deviations, and why:
   * Depth order. `depth_phase="after"` (default) is the DoCRL script's order: the whole horizontal
     phase at the start altitude, then the vertical one. `"first"` is the JINT copy's order
     (check_z_position before the horizontal phase), `"concurrent"` commands vz towards the target
-    depth in every mode. In all orders a depth phase that finds the vehicle more than 0.5 m from
+    depth in every mode, and `"in_air"` (ours) climbs first when the target is above and descends
+    last when it is below, so the horizontal phase always runs in air, with the 270 deg LIDAR the
+    original relied on in both media: the nearest this env allows to the original's sensing. In all orders a depth phase that finds the vehicle more than 0.5 m from
     the target in x-y (drifted by wind during the descent) returns to GO_FORWARD: the original
     declared success after check_z_position without looking; here success is the environment's
     3-D arrival (0.5 m), so the BBA keeps going until then or until the trial ends.
@@ -72,7 +74,7 @@ from docrl_jax.policy import Policy
 
 GO_FORWARD, CONTOUR, GO_TO_TARGET, DEPTH, HOLD = 0, 1, 2, 3, 4
 MODE_NAMES = ("go_forward", "contour", "go_to_target", "depth", "hold")
-DEPTH_PHASES = ("after", "first", "concurrent")
+DEPTH_PHASES = ("after", "first", "concurrent", "in_air")
 
 
 @dataclass(frozen=True)
@@ -89,7 +91,7 @@ class BBAParams:
     front_sector_deg: tuple[float, float] = (-90.0, -45.0)   # indices (180, 360): turn left
     depth_tolerance: float = 0.1       # m, `check_z_position`
     vertical_speed: float = 0.25       # m/s, `check_z_position`
-    depth_phase: str = "after"         # "after" (DoCRL order), "first" (JINT order), "concurrent"
+    depth_phase: str = "after"         # "after" (DoCRL order), "first" (JINT order), "concurrent", "in_air"
     # Env constants needed to read ranges and to map commands to actions (EnvParams defaults).
     lidar_fov_deg: float = 270.0
     sonar_fov_deg: float = 90.0
@@ -125,8 +127,9 @@ def make_bba(env_params=None, **overrides) -> Policy:
     initial_mode = DEPTH if bp.depth_phase == "first" else GO_FORWARD
 
     def init_carry():
-        return {"mode": jnp.asarray(initial_mode, jnp.int32),
-                "horizontal_done": jnp.asarray(False)}
+        # "in_air" picks its first mode on the first step (it needs the goal): flagged by mode -1.
+        mode = -1 if bp.depth_phase == "in_air" else initial_mode
+        return {"mode": jnp.asarray(mode, jnp.int32), "horizontal_done": jnp.asarray(False)}
 
     def to_action(v, vz, dpsi):
         return jnp.stack([jnp.clip(2.0 * v / bp.max_forward_speed - 1.0, -1.0, 1.0),
@@ -145,6 +148,9 @@ def make_bba(env_params=None, **overrides) -> Policy:
 
         # ---- transitions (the loop conditions of the original, checked at the top of each step)
         mode, h_done = carry["mode"], carry["horizontal_done"]
+        # "in_air": climb first when the target is above (the horizontal phase then runs in air with
+        # the 270 deg LIDAR), descend last when it is below.
+        mode = jnp.where(mode < 0, jnp.where(dz > 0, DEPTH, GO_FORWARD), mode)
         xy_ok = xy_dist < bp.xy_tolerance
         z_ok = jnp.abs(dz) < bp.depth_tolerance
         blocked = jnp.min(ranges) < bp.blocked_distance
