@@ -205,11 +205,14 @@ def _pm(mean: float, std: float, digits: int = 2) -> str:
     return f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
-def markdown_table(rows: Sequence[dict[str, Any]], paper: bool = True) -> str:
+def markdown_table(rows: Sequence[dict[str, Any]], paper: bool = True, seed_rows: Sequence[dict] = ()) -> str:
     """Markdown tables in the paper's format (Test | t_air (s) | t_water (s) | Success), one per
-    scenario, with our extra columns, and the paper's published rows beside ours (scenario 2)."""
+    scenario, with our extra columns, and the paper's published rows beside ours (scenario 2).
+    `seed_rows` (from `aggregate_seeds`) adds a table of mean and spread over seeds."""
     from docrl_jax import paper_results
-    out = []
+    out = [markdown_seed_table(list(seed_rows))] if seed_rows else []
+    if seed_rows:
+        out.append("## Per seed\n")
     for scen in sorted({r["scenario"] for r in rows}):
         out.append(f"### Scenario {scen}\n")
         out.append("| Test | t_air (s) | t_water (s) | Success | Collisions | Out of bounds | Time-outs | "
@@ -218,7 +221,8 @@ def markdown_table(rows: Sequence[dict[str, Any]], paper: bool = True) -> str:
         for r in rows:
             if r["scenario"] != scen:
                 continue
-            out.append(f"| {SHORT[r['direction']]} {r['method']} | {_pm(r['t_air_mean'], r['t_air_std'])} | "
+            seed = "" if r.get("seed_index") is None else f" #{r['seed_index']}"
+            out.append(f"| {SHORT[r['direction']]} {r['method']}{seed} | {_pm(r['t_air_mean'], r['t_air_std'])} | "
                        f"{_pm(r['t_water_mean'], r['t_water_std'])} | {r['successes']}/{r['trials']} | "
                        f"{r['collisions']} | {r['out_of_bounds']} | {r['timeouts']} | "
                        f"{_pm(r['path_length_mean'], r['path_length_std'])} |")
@@ -232,23 +236,26 @@ def markdown_table(rows: Sequence[dict[str, Any]], paper: bool = True) -> str:
     return "\n".join(out) + "\n"
 
 
-CSV_FIELDS = ("method", "scenario", "direction", "trials", "successes", "success_rate", "collisions",
+CSV_FIELDS = ("method", "seed_index", "scenario", "direction", "trials", "successes", "success_rate", "collisions",
               "out_of_bounds", "timeouts", "diverged", "t_air_mean", "t_air_std", "t_water_mean", "t_water_std",
               "time_mean", "time_std", "path_length_mean", "path_length_std", "path_length_all_mean",
               "path_length_all_std", "final_distance_mean", "final_distance_std", "compile_s", "run_s")
-TRIAL_FIELDS = ("method", "scenario", "direction", "trial", "outcome", "steps", "time", "t_air", "t_water",
+TRIAL_FIELDS = ("method", "seed_index", "scenario", "direction", "trial", "outcome", "steps", "time", "t_air", "t_water",
                 "path_length", "final_distance", "episode_return", "start_x", "start_y", "start_z", "start_yaw")
 
 
-def write_outputs(out_dir: Path, rows: list[dict], trial_rows: list[dict], meta: dict) -> None:
+def write_outputs(out_dir: Path, rows: list[dict], trial_rows: list[dict], meta: dict,
+                  seed_rows: Sequence[dict] = ()) -> None:
+    """results.md (tables), results.csv (one row per scenario, direction and seed), trials.csv (one
+    row per trial), results.json (all of it, plus the run's settings in "meta")."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "results.md").write_text(markdown_table(rows))
+    (out_dir / "results.md").write_text(markdown_table(rows, seed_rows=seed_rows))
     with open(out_dir / "results.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
     with open(out_dir / "trials.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=TRIAL_FIELDS)
+        w = csv.DictWriter(f, fieldnames=TRIAL_FIELDS, extrasaction="ignore")
         w.writeheader()
         w.writerows(trial_rows)
 
@@ -260,7 +267,8 @@ def write_outputs(out_dir: Path, rows: list[dict], trial_rows: list[dict], meta:
         if isinstance(x, (list, tuple)):
             return [clean(v) for v in x]
         return x
-    (out_dir / "results.json").write_text(json.dumps(clean({"meta": meta, "results": rows, "trials": trial_rows}),
+    (out_dir / "results.json").write_text(json.dumps(clean({"meta": meta, "results": rows, "over_seeds": list(seed_rows),
+                                                            "trials": trial_rows}),
                                                      indent=1))
 
 
@@ -330,7 +338,9 @@ def build_parser() -> argparse.ArgumentParser:
     src = p.add_mutually_exclusive_group()
     src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory (config.yaml + checkpoints)")
     src.add_argument("--policy", metavar="NAME", help=f"a built-in policy: {', '.join(POLICIES)}")
-    p.add_argument("--seed-index", type=int, default=0, help="which seed of --run to evaluate (default 0)")
+    p.add_argument("--seed-index", default="0",
+                   help="seed(s) of --run to evaluate, comma-separated, e.g. 0,1,2 (default 0); several seeds "
+                        "also give a table of mean and spread over seeds")
     p.add_argument("--label", help="method name in the tables (default: 'BBA' or the run dir's name)")
     p.add_argument("--trials", type=int, default=100, help="trials per scenario and direction (default 100)")
     p.add_argument("--scenarios", default="1,2,3", help="comma-separated scenarios (default 1,2,3)")
@@ -363,12 +373,10 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         raise UsageError(f"--trials {args.trials}: must be a positive integer")
     if args.max_steps <= 0:
         raise UsageError(f"--max-steps {args.max_steps}: must be a positive integer")
-    if args.seed_index < 0:
-        raise UsageError(f"--seed-index {args.seed_index}: must be >= 0")
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
     cfg = {"scenarios": parse_scenarios(args.scenarios), "directions": parse_directions(args.directions),
-           "env": parse_env_overrides(args.env)}
+           "env": parse_env_overrides(args.env), "seed_indices": parse_seed_indices(args.seed_index)}
     if args.run is not None:
         check_run_dir(args.run)
     for d in args.curves or []:
@@ -404,13 +412,73 @@ def find_metrics_csv(path: str | os.PathLike) -> Path:
     raise RunDirError(f"{str(p)!r}: no metrics.csv there (give a run directory or a metrics.csv file)")
 
 
-def load_policy_for(args, env_params) -> tuple[Any, str]:
+def parse_seed_indices(text: str) -> list[int]:
+    try:
+        vals = [int(t) for t in str(text).split(",") if t.strip() != ""]
+    except ValueError:
+        raise UsageError(f"--seed-index {text!r}: expected integers >= 0, comma-separated (e.g. 0 or 0,1,2)") from None
+    if not vals or any(v < 0 for v in vals):
+        raise UsageError(f"--seed-index {text!r}: expected integers >= 0, comma-separated (e.g. 0 or 0,1,2)")
+    return list(dict.fromkeys(vals))
+
+
+def load_policy_for(args, env_params, seed_index: int) -> tuple[Any, str]:
+    """(policy, label) for --policy or for one seed of --run (the trainer is imported lazily)."""
     if args.policy is not None:
         from docrl_jax.baselines.bba import make_bba
         return make_bba(env_params, depth_phase=args.bba_depth_phase), args.label or "BBA"
-    from docrl_jax.train import load_policy  # lazily: the trainer module is optional for baselines
-    policy = load_policy(args.run, seed_index=args.seed_index)
-    return policy, args.label or f"{Path(args.run).name}#{args.seed_index}"
+    from docrl_jax.train import load_policy  # lazily: baselines need no trainer
+    policy = load_policy(args.run, seed_index=seed_index)
+    return policy, args.label or Path(args.run).resolve().name
+
+
+def aggregate_seeds(rows: list[dict]) -> list[dict]:
+    """One row per (method, scenario, direction) over seeds: success mean/std over seeds (counts and
+    rates), and t_air/t_water/path pooled over every seed's successful trials (weighted by successes)."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["method"], r["scenario"], r["direction"]), []).append(r)
+    out = []
+    for (method, scen, direction), rs in groups.items():
+        succ = np.array([r["successes"] for r in rs], float)
+        rate = np.array([r["success_rate"] for r in rs], float)
+        agg = {"method": method, "scenario": scen, "direction": direction, "seeds": [r["seed_index"] for r in rs],
+               "trials": rs[0]["trials"], "successes_mean": float(succ.mean()), "successes_std": float(succ.std()),
+               "successes_per_seed": [int(x) for x in succ], "success_rate_mean": float(rate.mean()),
+               "success_rate_std": float(rate.std())}
+        for key in ("collisions", "out_of_bounds", "timeouts"):
+            agg[f"{key}_mean"] = float(np.mean([r[key] for r in rs]))
+        for name in ("t_air", "t_water", "time", "path_length"):
+            # pooled mean/std from per-seed (n, mean, std): exact for population statistics
+            n = np.array([r["successes"] for r in rs], float)
+            m = np.array([r[f"{name}_mean"] if r["successes"] else 0.0 for r in rs], float)
+            sd = np.array([r[f"{name}_std"] if r["successes"] else 0.0 for r in rs], float)
+            if n.sum() == 0:
+                agg[f"{name}_mean"] = agg[f"{name}_std"] = float("nan")
+            else:
+                mu = float((n * m).sum() / n.sum())
+                agg[f"{name}_mean"] = mu
+                agg[f"{name}_std"] = float(np.sqrt((n * (sd ** 2 + (m - mu) ** 2)).sum() / n.sum()))
+        out.append(agg)
+    return out
+
+
+def markdown_seed_table(aggs: list[dict]) -> str:
+    out = ["## Over seeds\n", "Success: mean ± std over seeds (per seed in brackets); times and path: pooled over "
+           "every seed's successful trials.\n"]
+    for scen in sorted({a["scenario"] for a in aggs}):
+        out.append(f"### Scenario {scen}\n")
+        out.append("| Test | t_air (s) | t_water (s) | Success | Seeds | Path (m) |")
+        out.append("|---|---|---|---|---|---|")
+        for a in aggs:
+            if a["scenario"] != scen:
+                continue
+            out.append(f"| {SHORT[a['direction']]} {a['method']} | {_pm(a['t_air_mean'], a['t_air_std'])} | "
+                       f"{_pm(a['t_water_mean'], a['t_water_std'])} | {_pm(a['successes_mean'], a['successes_std'], 1)}"
+                       f"/{a['trials']} {a['successes_per_seed']} | {len(a['seeds'])} | "
+                       f"{_pm(a['path_length_mean'], a['path_length_std'])} |")
+        out.append("")
+    return "\n".join(out) + "\n"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -432,54 +500,63 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
     import jax
+    import docrl_jax.envs as envs
+    seed_indices = cfg["seed_indices"] if args.run is not None else [None]
     rows, trial_rows = [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
-            "trials": args.trials, "max_steps": args.max_steps, "seed": args.seed,
-            "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]}, "trial_spec": asdict(TrialSpec()),
-            "nominal_yaw": NOMINAL_YAW, "jax_backend": jax.default_backend(),
-            "devices": [str(d) for d in jax.devices()]}
-    policy = method = None
+            "run": args.run, "policy": args.policy, "seed_indices": seed_indices, "trials": args.trials,
+            "max_steps": args.max_steps, "seed": args.seed, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
+            "trial_spec": asdict(TrialSpec()), "nominal_yaw": NOMINAL_YAW,
+            "bba_depth_phase": args.bba_depth_phase if args.policy else None,
+            "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()]}
+    policies: dict = {}
     base = jax.random.PRNGKey(args.seed)
+    t_start = time.time()
     for scenario in cfg["scenarios"]:
         env = make_eval_env(scenario, args.max_steps, **cfg["env"])
-        try:
-            if policy is None:
-                policy, method = load_policy_for(args, env.params)
-        except RunDirError as e:
-            parser.error(str(e))
-        import docrl_jax.envs as envs
-        for direction in cfg["directions"]:
-            start, goal = envs.eval_pair(scenario, direction)
-            key = jax.random.fold_in(jax.random.fold_in(base, scenario), DIRECTIONS.index(direction))
-            t0 = time.time()
-            fresh = (id(env), id(policy.act), id(policy.init_carry), args.max_steps) not in _ROLLOUTS
-            trials = run_trials(env, policy, start, goal, key, args.trials, args.max_steps, NOMINAL_YAW[direction])
-            elapsed = time.time() - t0
-            row = {"method": method, "scenario": scenario, "direction": direction, **summarize(trials),
-                   "compile_s": None, "run_s": round(elapsed, 2)}
-            row["compile_s" if fresh else "run_s"] = round(elapsed, 2)  # first call includes compilation
-            if fresh:
-                row["run_s"] = None
-            rows.append(row)
-            trial_rows += trial_table(method, scenario, direction, trials)
-            print(f"scenario {scenario} {SHORT[direction]} {method}: {row['successes']}/{row['trials']} success, "
-                  f"{row['collisions']} collisions, {row['out_of_bounds']} out of bounds, {row['timeouts']} "
-                  f"time-outs ({elapsed:.1f} s{' incl. compile' if fresh else ''})", flush=True)
-            np.savez_compressed(out_dir / f"trajectories_s{scenario}_{direction}.npz",
-                                positions=trials["positions"].astype(np.float32), steps=trials["steps"],
-                                outcome=trials["outcome"], start=np.asarray(start), goal=np.asarray(goal))
-            if args.figures > 0:
-                from docrl_jax import plotting
-                plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"], trials["outcome"],
-                                           start, goal, out_dir / f"trajectory_s{scenario}_{direction}.png",
-                                           title=f"{method}, scenario {scenario}, {SHORT[direction]}",
-                                           max_trajectories=args.figures)
-        policy_cache_clear = [k for k in _ROLLOUTS if k[0] == id(env)]
-        for k in policy_cache_clear:  # one scenario's env at a time (frees the compiled rollout)
+        for seed_index in seed_indices:
+            if seed_index not in policies:
+                try:
+                    policies[seed_index] = load_policy_for(args, env.params, seed_index)
+                except RunDirError as e:
+                    parser.error(str(e))
+            policy, method = policies[seed_index]
+            tag = "" if seed_index is None else f" seed {seed_index}"
+            for direction in cfg["directions"]:
+                start, goal = envs.eval_pair(scenario, direction)
+                # Same trial seeds (wind, noise, jitter) for every method and seed index: paired comparisons.
+                key = jax.random.fold_in(jax.random.fold_in(base, scenario), DIRECTIONS.index(direction))
+                fresh = (id(env), id(policy.act), id(policy.init_carry), args.max_steps) not in _ROLLOUTS
+                t0 = time.time()
+                trials = run_trials(env, policy, start, goal, key, args.trials, args.max_steps,
+                                    NOMINAL_YAW[direction])
+                elapsed = time.time() - t0
+                row = {"method": method, "seed_index": seed_index, "scenario": scenario, "direction": direction,
+                       **summarize(trials), "compile_s": None, "run_s": None,
+                       ("compile_s" if fresh else "run_s"): round(elapsed, 2)}  # a fresh call includes compiling
+                rows.append(row)
+                trial_rows += [{**t, "seed_index": seed_index}
+                               for t in trial_table(method, scenario, direction, trials)]
+                print(f"scenario {scenario} {SHORT[direction]} {method}{tag}: {row['successes']}/{row['trials']} "
+                      f"success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
+                      f"{row['timeouts']} time-outs ({elapsed:.1f} s{' incl. compile' if fresh else ''})", flush=True)
+                stem = f"s{scenario}_{direction}" + ("" if seed_index is None else f"_seed{seed_index}")
+                np.savez_compressed(out_dir / f"trajectories_{stem}.npz",
+                                    positions=trials["positions"].astype(np.float32), steps=trials["steps"],
+                                    outcome=trials["outcome"], start=np.asarray(start), goal=np.asarray(goal))
+                if args.figures > 0:
+                    from docrl_jax import plotting
+                    plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"],
+                                               trials["outcome"], start, goal, out_dir / f"trajectory_{stem}.png",
+                                               title=f"{method}{tag}, scenario {scenario}, {SHORT[direction]}",
+                                               max_trajectories=args.figures)
+        for k in [k for k in _ROLLOUTS if k[0] == id(env)]:  # one scenario's compiled rollouts at a time
             _ROLLOUTS.pop(k)
-    write_outputs(out_dir, rows, trial_rows, meta)
-    print(markdown_table(rows))
-    print(f"wrote {out_dir}/results.md, results.csv, results.json, trials.csv")
+    meta["wall_time_s"] = round(time.time() - t_start, 2)
+    aggs = aggregate_seeds(rows) if args.run is not None else []
+    write_outputs(out_dir, rows, trial_rows, meta, aggs)
+    print(markdown_table(rows, seed_rows=aggs))
+    print(f"wrote {out_dir}/results.md, results.csv, results.json, trials.csv ({meta['wall_time_s']} s)")
     return 0
 
 

@@ -244,3 +244,49 @@ def test_cli_curves_only(tmp_path, no_compile):
     _write_metrics(tmp_path / "runA" / "metrics.csv", [0, 1])
     assert evaluate.main(["--curves", str(tmp_path / "runA"), "--out", str(tmp_path / "o")]) == 0
     assert (tmp_path / "o" / "learning_curves.png").exists()
+
+
+# ------------------------------------------------------------------ --run through a stand-in trainer
+
+@pytest.fixture
+def fake_trainer(monkeypatch, tmp_path):
+    """A stand-in `docrl_jax.train` whose load_policy returns the scripted oracle for seeds 0-1."""
+    import sys
+    import types
+    mod = types.ModuleType("docrl_jax.train")
+    oracle = straight_line()
+
+    def load_policy(run_dir, seed_index=0):
+        evaluate.check_run_dir(run_dir)
+        if seed_index > 1:
+            raise RunDirError(f"run directory {run_dir!r} has seeds 0, 1; no seed index {seed_index}")
+        return oracle
+    mod.load_policy = load_policy
+    monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
+    run = tmp_path / "oracle_run"
+    run.mkdir()
+    (run / "config.yaml").write_text("algo: oracle\n")
+    return run
+
+
+def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert evaluate.main(["--run", str(fake_trainer), "--seed-index", "0,1", "--trials", "3", "--scenarios", "1",
+                          "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "2",
+                          "--out", str(out)]) == 0
+    md = (out / "results.md").read_text()
+    assert "## Over seeds" in md and "| A-W oracle_run | " in md and "3.0 ± 0.0/3 [3, 3]" in md
+    js = json.loads((out / "results.json").read_text())
+    assert [r["seed_index"] for r in js["results"]] == [0, 1] and js["over_seeds"][0]["successes_mean"] == 3
+    assert len(js["trials"]) == 6 and js["meta"]["seed_indices"] == [0, 1]
+    assert (out / "trajectory_s1_air_to_water_seed0.png").exists()
+    assert (out / "trajectories_s1_air_to_water_seed1.npz").exists()
+
+
+def test_cli_run_bad_seed_index(fake_trainer, tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(fake_trainer), "--seed-index", "7", "--scenarios", "1", "--out", str(tmp_path)])
+    assert e.value.code == 2 and "no seed index 7" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(fake_trainer), "--seed-index", "-1", "--out", str(tmp_path)])
+    assert e.value.code == 2 and "expected integers >= 0" in capsys.readouterr().err
