@@ -62,14 +62,22 @@ class TrialSpec:
 
 # ---------------------------------------------------------------------------------------- core
 
+_ENVS: dict = {}
+
+
 def make_eval_env(scenario: int, max_steps: int = 500, **overrides):
-    """The environment of the evaluation: episodes end at arrival; `max_steps` steps at most."""
+    """The environment of the evaluation: episodes end at arrival; `max_steps` steps at most.
+
+    Cached per settings, so repeated evaluations in one process reuse the env and its compiled rollouts."""
     import docrl_jax.envs as envs
     kw = dict(DEFAULT_EVAL_ENV)
-    kw.update(overrides)
+    kw.update({k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()})
     kw["terminate_on_arrival"] = True
     kw["max_episode_steps"] = int(max_steps)
-    return envs.make(scenario=scenario, **kw)
+    key = (int(scenario), tuple(sorted(kw.items())))
+    if key not in _ENVS:
+        _ENVS[key] = envs.make(scenario=scenario, **kw)
+    return _ENVS[key]
 
 
 def trial_starts(key, start, num_trials: int, yaw: float, spec: TrialSpec = TrialSpec()):
@@ -550,8 +558,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                                                trials["outcome"], start, goal, out_dir / f"trajectory_{stem}.png",
                                                title=f"{method}{tag}, scenario {scenario}, {SHORT[direction]}",
                                                max_trajectories=args.figures)
-        for k in [k for k in _ROLLOUTS if k[0] == id(env)]:  # one scenario's compiled rollouts at a time
-            _ROLLOUTS.pop(k)
     meta["wall_time_s"] = round(time.time() - t_start, 2)
     aggs = aggregate_seeds(rows) if args.run is not None else []
     write_outputs(out_dir, rows, trial_rows, meta, aggs)

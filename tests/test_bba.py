@@ -96,8 +96,8 @@ def test_vmaps_over_trials(bba):
     n = 5
     carry = jax.vmap(lambda _: bba.init_carry())(jnp.arange(n))
     info = jax.vmap(lambda x: _info(goal=(3.0, x, 2.5)))(jnp.linspace(-3, 3, n))
-    carry, a = jax.vmap(bba.act, in_axes=(None, 0, None, 0, None))(bba.params, carry, jnp.zeros(26), info,
-                                                                    jax.random.PRNGKey(0))
+    act = jax.jit(jax.vmap(bba.act, in_axes=(None, 0, None, 0, None)))
+    carry, a = act(bba.params, carry, jnp.zeros(26), info, jax.random.PRNGKey(0))
     assert a.shape == (n, 3) and bool(jnp.all(jnp.abs(a) <= 1.0))
 
 
@@ -115,7 +115,7 @@ def test_bba_reaches_goal_in_empty_tank(direction, request):
 
 @pytest.fixture(scope="module")
 def empty_tank():
-    return evaluate.make_eval_env(1, MAX_STEPS)
+    return evaluate.make_eval_env(1, MAX_STEPS, z_bounds=(-3.0, 4.8))  # the env of test_evaluate.py (cached)
 
 
 @pytest.fixture(scope="module")

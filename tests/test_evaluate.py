@@ -16,7 +16,8 @@ from docrl_jax import evaluate, paper_results, plotting
 from docrl_jax.baselines.scripted import straight_line
 from docrl_jax.policy import RunDirError
 
-MAX_STEPS = 150
+MAX_STEPS = 200
+LOW_FLOOR = (-3.0, 4.8)  # z bounds below the floor (top -1.3), so a dive ends on the floor
 N = 6
 
 
@@ -24,7 +25,7 @@ N = 6
 def env():
     # Scenario 1 (empty tank). The vertical bound is lowered below the floor (top -1.3) so a dive
     # ends on the floor (a collision) rather than at the -1.1 bound.
-    return evaluate.make_eval_env(1, MAX_STEPS, z_bounds=(-3.0, 4.8))
+    return evaluate.make_eval_env(1, MAX_STEPS, z_bounds=LOW_FLOOR)
 
 
 @pytest.fixture(scope="module")
@@ -76,9 +77,10 @@ def test_trials_differ_by_seed_and_starts_are_jittered(oracle_trials):
     assert len(set(np.round(oracle_trials["path_length"], 4))) > 1
 
 
-def test_rollout_is_cached(env):
+def test_rollout_and_env_are_cached(env):
     p1, p2 = straight_line(), straight_line(dive=True)
     assert evaluate.make_rollout(env, p1, MAX_STEPS) is evaluate.make_rollout(env, p2, MAX_STEPS)
+    assert evaluate.make_eval_env(1, MAX_STEPS, z_bounds=list(LOW_FLOOR)) is env
 
 
 def test_metrics_on_synthetic_records():
@@ -134,7 +136,9 @@ def test_trajectory_figure(tmp_path, env, oracle_trials):
 
 
 def test_scene_solids_scenario_3():
-    s = plotting.scene_solids(envs.make(scenario=3).mj_model)
+    import mujoco
+    from docrl_jax.envs.huauv import _scene_path
+    s = plotting.scene_solids(mujoco.MjModel.from_xml_path(_scene_path(3)))
     assert s["tank"] == pytest.approx(4.9) and s["floor_top"] == pytest.approx(-2.0)
     assert len(s["boxes"]) + len(s["capsules"]) == 15
 
@@ -271,14 +275,15 @@ def fake_trainer(monkeypatch, tmp_path):
 
 def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
     out = tmp_path / "out"
-    assert evaluate.main(["--run", str(fake_trainer), "--seed-index", "0,1", "--trials", "3", "--scenarios", "1",
+    assert evaluate.main(["--run", str(fake_trainer), "--seed-index", "0,1", "--trials", str(N), "--scenarios", "1",
                           "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "2",
+                          "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]",  # the module's env and N: no new compile
                           "--out", str(out)]) == 0
     md = (out / "results.md").read_text()
-    assert "## Over seeds" in md and "| A-W oracle_run | " in md and "3.0 ± 0.0/3 [3, 3]" in md
+    assert "## Over seeds" in md and "| A-W oracle_run | " in md and f"{N:.1f} ± 0.0/{N} [{N}, {N}]" in md
     js = json.loads((out / "results.json").read_text())
-    assert [r["seed_index"] for r in js["results"]] == [0, 1] and js["over_seeds"][0]["successes_mean"] == 3
-    assert len(js["trials"]) == 6 and js["meta"]["seed_indices"] == [0, 1]
+    assert [r["seed_index"] for r in js["results"]] == [0, 1] and js["over_seeds"][0]["successes_mean"] == N
+    assert len(js["trials"]) == 2 * N and js["meta"]["seed_indices"] == [0, 1]
     assert (out / "trajectory_s1_air_to_water_seed0.png").exists()
     assert (out / "trajectories_s1_air_to_water_seed1.npz").exists()
 
