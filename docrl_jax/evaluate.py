@@ -434,7 +434,8 @@ def load_policy_for(args, env_params, seed_index: int) -> tuple[Any, str]:
     """(policy, label) for --policy or for one seed of --run (the trainer is imported lazily)."""
     if args.policy is not None:
         from docrl_jax.baselines.bba import make_bba
-        return make_bba(env_params, depth_phase=args.bba_depth_phase), args.label or "BBA"
+        default = "BBA" if args.bba_depth_phase == "after" else f"BBA ({args.bba_depth_phase})"
+        return make_bba(env_params, depth_phase=args.bba_depth_phase), args.label or default
     from docrl_jax.train import load_policy  # lazily: baselines need no trainer
     policy = load_policy(args.run, seed_index=seed_index)
     return policy, args.label or Path(args.run).resolve().name

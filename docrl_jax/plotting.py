@@ -163,21 +163,20 @@ def draw_scene_3d(ax, solids: dict) -> None:
 
 # ------------------------------------------------------------------------------------ trajectories
 
-def plot_trajectories(mj_model, positions, steps, outcome, start, goal, path, title: str = "",
-                      max_trajectories: int = 10, arrival_distance: float = 0.5) -> Path:
-    """3-D view and x-y view of up to `max_trajectories` trials (coloured by outcome), tank,
-    obstacles, water surface, start and goal. positions (N, T+1, 3), steps (N,), outcome (N,)."""
+def _choose(outcome: np.ndarray, k: int) -> list[int]:
+    """Up to k trial indices: successes first, then failures, so both kinds appear."""
+    ok, bad = list(np.flatnonzero(outcome == 0)), list(np.flatnonzero(outcome != 0))
+    k_ok = min(len(ok), max(1, k // 2) if bad else k)
+    return ok[:k_ok] + bad[: k - k_ok]
+
+
+def draw_trajectories(ax3, ax2, solids, positions, steps, outcome, start, goal, max_trajectories=10,
+                      arrival_distance=0.5, legend=True) -> list[int]:
+    """Scene, trajectories (coloured by outcome), start and goal on a 3-D axis and an x-y axis."""
     positions, steps, outcome = np.asarray(positions), np.asarray(steps), np.asarray(outcome)
-    solids = scene_solids(mj_model)
-    # Show successes first, then failures, so both kinds appear when there are many trials.
-    order = np.concatenate([np.flatnonzero(outcome == 0), np.flatnonzero(outcome != 0)])
-    k_ok = min(int((outcome == 0).sum()), max(1, max_trajectories // 2) if (outcome != 0).any() else max_trajectories)
-    chosen = list(order[:k_ok]) + [i for i in order if outcome[i] != 0][: max_trajectories - k_ok]
-    fig = plt.figure(figsize=(12, 5.6))
-    ax3 = fig.add_subplot(1, 2, 1, projection="3d")
-    ax2 = fig.add_subplot(1, 2, 2)
     draw_scene_3d(ax3, solids)
     draw_scene_xy(ax2, solids)
+    chosen = _choose(outcome, max_trajectories)
     seen = set()
     for i in chosen:
         p = positions[i, : int(steps[i]) + 1]
@@ -189,15 +188,12 @@ def plot_trajectories(mj_model, positions, steps, outcome, start, goal, path, ti
         if int(outcome[i]) in (1, 2, 4):
             ax2.plot(p[-1, 0], p[-1, 1], "x", color=c, ms=7, mew=2)
             ax3.scatter(*p[-1], color=c, marker="x", s=30)
-    for ax in (ax3, ax2):
-        pts = [start, goal]
-        kw = [dict(color="k", marker="^", s=70, label="start"), dict(color="gold", marker="*", s=220,
-                                                                     edgecolor="k", label="goal")]
-        for pt, k in zip(pts, kw):
-            if ax is ax3:
-                ax.scatter(pt[0], pt[1], pt[2], **k)
-            else:
-                ax.scatter(pt[0], pt[1], zorder=5, **k)
+    start_kw = dict(color="k", marker="^", s=70, label="start")
+    goal_kw = dict(color="gold", marker="*", s=220, edgecolor="k", label="goal")
+    ax3.scatter(*start, **start_kw)
+    ax3.scatter(*goal, **goal_kw)
+    ax2.scatter(start[0], start[1], zorder=5, **start_kw)
+    ax2.scatter(goal[0], goal[1], zorder=5, **goal_kw)
     ax2.add_patch(plt.Circle(goal[:2], arrival_distance, fill=False, ls="--", ec="goldenrod"))
     h = solids["tank"]
     ax3.set(xlim=(-h, h), ylim=(-h, h), zlim=(solids["floor_top"], Z_TOP), xlabel="x (m)", ylabel="y (m)",
@@ -206,18 +202,105 @@ def plot_trajectories(mj_model, positions, steps, outcome, start, goal, path, ti
     ax3.view_init(elev=22, azim=-60)
     ax2.set(xlim=(-h - 0.3, h + 0.3), ylim=(-h - 0.3, h + 0.3), xlabel="x (m)", ylabel="y (m)", aspect="equal")
     ax2.grid(alpha=0.3)
+    if legend:
+        ax2.legend(loc="upper left", fontsize=8, framealpha=0.85)
+    return chosen
+
+
+def plot_trajectories(mj_model, positions, steps, outcome, start, goal, path, title: str = "",
+                      max_trajectories: int = 10, arrival_distance: float = 0.5) -> Path:
+    """3-D view and x-y view of up to `max_trajectories` trials (coloured by outcome), tank,
+    obstacles, water surface, start and goal. positions (N, T+1, 3), steps (N,), outcome (N,)."""
+    outcome = np.asarray(outcome)
+    solids = scene_solids(mj_model)
+    fig = plt.figure(figsize=(12, 5.6))
+    ax3 = fig.add_subplot(1, 2, 1, projection="3d")
+    ax2 = fig.add_subplot(1, 2, 2)
+    chosen = draw_trajectories(ax3, ax2, solids, positions, steps, outcome, start, goal, max_trajectories,
+                               arrival_distance)
     n_ok = int((outcome == 0).sum())
-    ax2.legend(loc="upper left", fontsize=8, framealpha=0.85)
     ax2.set_title(f"x-y plane ({len(chosen)} of {len(outcome)} trials shown; {n_ok} successes)", fontsize=10)
     ax3.set_title("3-D (blue: water surface z = 0)", fontsize=10)
     if title:
         fig.suptitle(title)
     fig.tight_layout()
+    return _save(fig, path)
+
+
+def _save(fig, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_figure3(eval_dirs: Sequence, scenario: int, path, max_trajectories: int = 3,
+                 seed_index: int | None = None) -> Path:
+    """The paper's Figure 3 from several `python -m docrl_jax.evaluate` output directories: one row
+    per method, columns A-W 3-D, A-W x-y, W-A 3-D, W-A x-y, `max_trajectories` trials each.
+
+    Reads each dir's trajectories_s{scenario}_{direction}[_seed{k}].npz and its method name from
+    results.json; `seed_index` picks the seed of a multi-seed run (default: the first found)."""
+    import json
+    import mujoco
+    from docrl_jax.envs.huauv import _scene_path
+    solids = scene_solids(mujoco.MjModel.from_xml_path(_scene_path(scenario)))
+    eval_dirs = [Path(d) for d in eval_dirs]
+    if not eval_dirs:
+        raise ValueError("plot_figure3: no evaluation directories given")
+    fig = plt.figure(figsize=(18, 4.3 * len(eval_dirs)))
+    for row, d in enumerate(eval_dirs):
+        try:
+            method = json.loads((d / "results.json").read_text())["results"][0]["method"]
+        except (OSError, KeyError, IndexError, ValueError):
+            method = d.name
+        for col, direction in enumerate(("air_to_water", "water_to_air")):
+            stem = f"trajectories_s{scenario}_{direction}"
+            pattern = f"{stem}_seed{seed_index}.npz" if seed_index is not None else f"{stem}*.npz"
+            files = sorted(d.glob(pattern))
+            if not files:
+                raise FileNotFoundError(f"{d}: no {pattern} (run python -m docrl_jax.evaluate --scenarios "
+                                        f"{scenario} --out {d})")
+            z = np.load(files[0])
+            ax3 = fig.add_subplot(len(eval_dirs), 4, 4 * row + 2 * col + 1, projection="3d")
+            ax2 = fig.add_subplot(len(eval_dirs), 4, 4 * row + 2 * col + 2)
+            draw_trajectories(ax3, ax2, solids, z["positions"], z["steps"], z["outcome"], z["start"], z["goal"],
+                              max_trajectories, legend=(row == 0 and col == 0))
+            short = "air-water" if direction == "air_to_water" else "water-air"
+            n_ok, n = int((z["outcome"] == 0).sum()), len(z["outcome"])
+            ax3.set_title(f"{method}, {short}", fontsize=10)
+            ax2.set_title(f"{method}, {short}, x-y plane ({n_ok}/{n} success)", fontsize=10)
+    fig.suptitle(f"Trajectories, scenario {scenario} (cf. the paper's Figure 3)")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    import argparse
+    p = argparse.ArgumentParser(prog="python -m docrl_jax.plotting", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    f3 = sub.add_parser("figure3", help="Figure 3 from evaluation output dirs (one row per method)")
+    f3.add_argument("eval_dirs", nargs="+")
+    f3.add_argument("--scenario", type=int, default=2, choices=(1, 2, 3))
+    f3.add_argument("--trajectories", type=int, default=3)
+    f3.add_argument("--seed-index", type=int, default=None)
+    f3.add_argument("--out", default="figure3.png")
+    cv = sub.add_parser("curves", help="learning curves from run dirs or metrics.csv files")
+    cv.add_argument("runs", nargs="+")
+    cv.add_argument("--labels", help="comma-separated labels, one per run (same label = pooled seeds)")
+    cv.add_argument("--out", default=".")
+    args = p.parse_args(argv)
+    try:
+        if args.cmd == "figure3":
+            print(plot_figure3(args.eval_dirs, args.scenario, args.out, args.trajectories, args.seed_index))
+        else:
+            from docrl_jax.evaluate import find_metrics_csv
+            labels = args.labels.split(",") if args.labels else None
+            print(*plot_learning_curves([find_metrics_csv(r) for r in args.runs], args.out, labels))
+    except (ValueError, FileNotFoundError) as e:
+        p.error(str(e))
+    return 0
 
 
 # ------------------------------------------------------------------------------------ learning curves
@@ -313,3 +396,7 @@ def plot_learning_curves(csv_paths: Sequence, out_dir, labels: Sequence[str] | N
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return [out]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

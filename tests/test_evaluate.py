@@ -295,3 +295,20 @@ def test_cli_run_bad_seed_index(fake_trainer, tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         evaluate.main(["--run", str(fake_trainer), "--seed-index", "-1", "--out", str(tmp_path)])
     assert e.value.code == 2 and "expected integers >= 0" in capsys.readouterr().err
+
+
+def test_figure3_and_plotting_cli(tmp_path, oracle_trials, dive_trials):
+    start, goal = envs.eval_pair(1, "air_to_water")
+    for name, t in (("oracle", oracle_trials), ("dive", dive_trials)):
+        d = tmp_path / name
+        d.mkdir()
+        (d / "results.json").write_text(json.dumps({"results": [{"method": name}]}))
+        for direction in evaluate.DIRECTIONS:  # the same trials stand in for both directions
+            np.savez(d / f"trajectories_s1_{direction}.npz", positions=t["positions"], steps=t["steps"],
+                     outcome=t["outcome"], start=np.asarray(start), goal=np.asarray(goal))
+    out = plotting.plot_figure3([tmp_path / "oracle", tmp_path / "dive"], 1, tmp_path / "fig3.png")
+    assert out.stat().st_size > 20_000
+    assert plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "1", "--out",
+                          str(tmp_path / "f.png")]) == 0
+    with pytest.raises(SystemExit):
+        plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "2", "--out", str(tmp_path / "g.png")])
