@@ -312,3 +312,23 @@ def test_figure3_and_plotting_cli(tmp_path, oracle_trials, dive_trials):
                           str(tmp_path / "f.png")]) == 0
     with pytest.raises(SystemExit):
         plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "2", "--out", str(tmp_path / "g.png")])
+
+
+def test_aggregate_seeds_pools_exactly():
+    rng = np.random.default_rng(0)
+    samples = [rng.normal(10, 2, 7), rng.normal(14, 1, 3), np.array([])]   # seed 2: no successes
+    rows = []
+    for k, x in enumerate(samples):
+        mean, std = evaluate._mean_std(x)
+        rows.append({"method": "m", "seed_index": k, "scenario": 2, "direction": "water_to_air", "trials": 10,
+                     "successes": x.size, "success_rate": x.size / 10, "collisions": 10 - x.size,
+                     "out_of_bounds": 0, "timeouts": 0, **{f"{n}_{s}": v for n in ("t_air", "t_water", "time",
+                                                                                   "path_length")
+                                                           for s, v in (("mean", mean), ("std", std))}})
+    (agg,) = evaluate.aggregate_seeds(rows)
+    pooled = np.concatenate(samples)
+    assert agg["t_air_mean"] == pytest.approx(pooled.mean()) and agg["t_air_std"] == pytest.approx(pooled.std())
+    assert agg["successes_per_seed"] == [7, 3, 0] and agg["successes_mean"] == pytest.approx(10 / 3)
+    assert agg["successes_std"] == pytest.approx(np.std([7, 3, 0]))
+    md = evaluate.markdown_table(rows, seed_rows=[agg])
+    assert "## Over seeds" in md and "[7, 3, 0]" in md and "W-A m #2" in md
