@@ -121,3 +121,21 @@ def empty_tank():
 @pytest.fixture(scope="module")
 def bba_env(empty_tank):
     return make_bba(empty_tank.params)
+
+
+def test_contour_does_not_leave_while_target_is_outside_the_fan(bba):
+    ranges = np.full(20, 10.0)
+    ranges[10] = 0.8
+    carry, _ = _act(bba, bba.init_carry(), ranges=ranges)                # blocked ahead: CONTOUR
+    assert int(carry["mode"]) == CONTOUR
+    # Target behind-right at -160 deg: the fan's beams near -135 deg are clear, but the target is out of view.
+    behind = (3.0 * np.cos(np.deg2rad(-160)), 3.0 * np.sin(np.deg2rad(-160)), 2.5)
+    carry, _ = _act(bba, carry, ranges=np.full(20, 10.0), goal=behind)
+    assert int(carry["mode"]) == CONTOUR
+    # Underwater the sonar fan is +-45 deg: a target at -60 deg is outside it.
+    side = (3.0 * np.cos(np.deg2rad(-60)), 3.0 * np.sin(np.deg2rad(-60)), -0.5)
+    carry, _ = _act(bba, carry, ranges=np.full(20, 20.0), goal=side, position=(0.0, 0.0, -0.5), underwater=True)
+    assert int(carry["mode"]) == CONTOUR
+    ahead = (3.0 * np.cos(np.deg2rad(-30)), 3.0 * np.sin(np.deg2rad(-30)), -0.5)
+    carry, _ = _act(bba, carry, ranges=np.full(20, 20.0), goal=ahead, position=(0.0, 0.0, -0.5), underwater=True)
+    assert int(carry["mode"]) == GO_TO_TARGET

@@ -28,7 +28,8 @@ Thresholds and where they come from (all from bug_algorithm.py unless stated):
     blocked 0.9 m on the minimum of all ranges (`go_forward`);
     contour commands (0.15, -+0.25) / (0, +0.25) and the -135/-90/-45 deg sectors (the 1080-beam
     indices 0/180/360 at 4 beams per degree, 540 = straight ahead);
-    contour exit cone +-45 deg (indices id_target -+ 180) against the xy-distance to the target;
+    contour exit cone +-45 deg (indices id_target -+ 180) against the xy-distance to the target,
+    looked at only while the target bearing lies inside the active fan (see Deviations);
     depth tolerance 0.1 m and vz = +-0.25 m/s (`check_z_position`).
 Commands are physical (m/s, rad) and are mapped to the env's [-1, 1] actions with the env's
 `max_forward_speed`, `max_vertical_speed`, `max_yaw_change` (all 0.25: so v = 0.25 is a0 = 1,
@@ -39,12 +40,18 @@ Deviations, and why:
     Here only the active sensor is measured, so underwater the BBA sees the +-45 deg sonar fan:
     it reads `info["ranges"]` with the beam bearings of the active fan. Underwater the nearest return
     always lies in the "otherwise" sector, so contouring there is turning left in place until the
-    +-45 deg cone towards the target is clear within the fan (a cone with no beam of the fan in
-    it counts as not clear).
+    +-45 deg cone towards the target is clear within the fan.
   * Beam indices. The original's 1080-beam index arithmetic (which, with the 20-beam LIDAR its launch
     file actually loaded, sliced meaningless ranges and had its exceptions swallowed) is replaced
     by the same rules on beam bearings: the sectors and the cone are angles, so they mean what the
     1080-beam code meant, for either fan.
+  * Contour exit with the target outside the fan. In the original, id_target is clamped to
+    [0, 1080]; for a target bearing below -90 deg the slice [id_target-180 : id_target+180] starts at
+    a negative index, Python reads it from the end, the slice is empty, min() raises and the bare
+    `except: pass` keeps contouring; above +90 deg the slice is merely truncated, so a target behind
+    the vehicle (clamped to 1080) could count as "clear" on the 90-135 deg beams. Here one symmetric
+    rule: the cone counts as clear only while the target bearing lies inside the active fan
+    (+-135 deg LIDAR, +-45 deg sonar), and then on the fan's beams within +-45 deg of it.
   * Heading. `rotate` compared raw yaw - goal angle without wrapping (it could turn the long way
     round); here the error is wrapped to [-pi, pi] and the turn takes the short way.
   * Depth order. `depth_phase="after"` (default) is the DoCRL script's order: the whole horizontal
@@ -155,7 +162,9 @@ def make_bba(env_params=None, **overrides) -> Policy:
         z_ok = jnp.abs(dz) < bp.depth_tolerance
         blocked = jnp.min(ranges) < bp.blocked_distance
         in_cone = jnp.abs(_wrap(angles - heading_err)) <= cone
-        cone_clear = jnp.any(in_cone) & jnp.all(jnp.where(in_cone, ranges > xy_dist, True))
+        half_fov = jnp.where(info["underwater"], np.deg2rad(bp.sonar_fov_deg / 2), np.deg2rad(bp.lidar_fov_deg / 2))
+        target_in_fan = jnp.abs(heading_err) <= half_fov
+        cone_clear = target_in_fan & jnp.any(in_cone) & jnp.all(jnp.where(in_cone, ranges > xy_dist, True))
 
         # GO_FORWARD / GO_TO_TARGET: xy reached -> DEPTH (horizontal phase done); GO_FORWARD blocked -> CONTOUR
         horizontal = (mode == GO_FORWARD) | (mode == GO_TO_TARGET)
