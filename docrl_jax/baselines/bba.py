@@ -54,15 +54,17 @@ Deviations, and why:
     (+-135 deg LIDAR, +-45 deg sonar), and then on the fan's beams within +-45 deg of it.
   * Heading. `rotate` compared raw yaw - goal angle without wrapping (it could turn the long way
     round); here the error is wrapped to [-pi, pi] and the turn takes the short way.
-  * Depth order. `depth_phase="after"` (default) is the DoCRL script's order: the whole horizontal
-    phase at the start altitude, then the vertical one. `"first"` is the JINT copy's order
-    (check_z_position before the horizontal phase), `"concurrent"` commands vz towards the target
-    depth in every mode, and `"in_air"` (ours) climbs first when the target is above and descends
-    last when it is below, so the horizontal phase always runs in air, with the 270 deg LIDAR the
-    original relied on in both media: the nearest this env allows to the original's sensing. In all orders a depth phase that finds the vehicle more than 0.5 m from
-    the target in x-y (drifted by wind during the descent) returns to GO_FORWARD: the original
-    declared success after check_z_position without looking; here success is the environment's
-    3-D arrival (0.5 m), so the BBA keeps going until then or until the trial ends.
+  * Depth order. `depth_phase="after"` (default) is the DoCRL script's order as original-code.md
+    section 6 reports it: the whole horizontal phase at the start altitude, then the vertical one.
+    `"first"` is the order of the JINT copy of the script (check_z_position before the horizontal
+    phase; that copy is the one we could read), `"concurrent"` commands vz towards the target depth
+    in every mode, and `"in_air"` (ours) climbs first when the target is above and descends last
+    when it is below, so the horizontal phase always runs in air with the 270 deg LIDAR, the sensor
+    the original relied on in both media.
+  * After the depth phase (HOLD), a vehicle that has drifted more than 0.5 m from the target in x-y
+    (wind during the descent) goes back to GO_FORWARD, and one that has lost the depth back to DEPTH.
+    The original declared success after check_z_position without looking; here success is the
+    environment's 3-D arrival (0.5 m), so the BBA keeps going until then or until the trial ends.
   * Episode accounting. The original ended a trial itself on a LIDAR reading < 0.7 m (0.6 in the
     JINT copy); here the environment decides collisions (0.5 m, plus hull contact) like for every
     other method.
