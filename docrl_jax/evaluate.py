@@ -420,6 +420,38 @@ def find_metrics_csv(path: str | os.PathLike) -> Path:
     raise RunDirError(f"{str(p)!r}: no metrics.csv there (give a run directory or a metrics.csv file)")
 
 
+def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = SCENARIOS,
+                    directions: Sequence[str] = DIRECTIONS, num_trials: int = 100, max_steps: int = 500,
+                    seed: int = 0, env_overrides: dict | None = None, seed_index: int | None = None,
+                    on_result=None) -> list[tuple[dict, dict]]:
+    """The whole protocol for one policy: for each scenario and direction, `num_trials` trials.
+
+    Returns [(row, trials)]: `row` = `summarize` plus method, seed_index, scenario, direction and the
+    seconds taken (`compile_s` when this call compiled the rollout, else `run_s`); `trials` = the
+    `run_trials` arrays. The trial seeds depend only on (seed, scenario, direction), so every method
+    and seed index meets the same wind, noise and start jitter. `on_result(row, trials, env, start,
+    goal)` is called after each (scenario, direction)."""
+    import jax
+    import docrl_jax.envs as envs
+    base = jax.random.PRNGKey(seed)
+    results = []
+    for scenario in scenarios:
+        env = make_eval_env(scenario, max_steps, **(env_overrides or {}))
+        for direction in directions:
+            start, goal = envs.eval_pair(scenario, direction)
+            key = jax.random.fold_in(jax.random.fold_in(base, scenario), DIRECTIONS.index(direction))
+            fresh = (id(env), id(policy.act), id(policy.init_carry), int(max_steps)) not in _ROLLOUTS
+            t0 = time.time()
+            trials = run_trials(env, policy, start, goal, key, num_trials, max_steps, NOMINAL_YAW[direction])
+            elapsed = round(time.time() - t0, 2)
+            row = {"method": method, "seed_index": seed_index, "scenario": scenario, "direction": direction,
+                   **summarize(trials), "compile_s": elapsed if fresh else None, "run_s": None if fresh else elapsed}
+            if on_result is not None:
+                on_result(row, trials, env, start, goal)
+            results.append((row, trials))
+    return results
+
+
 def parse_seed_indices(text: str) -> list[int]:
     try:
         vals = [int(t) for t in str(text).split(",") if t.strip() != ""]
@@ -509,7 +541,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
     import jax
-    import docrl_jax.envs as envs
     seed_indices = cfg["seed_indices"] if args.run is not None else [None]
     rows, trial_rows = [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
@@ -519,8 +550,27 @@ def main(argv: Sequence[str] | None = None) -> int:
             "bba_depth_phase": args.bba_depth_phase if args.policy else None,
             "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()]}
     policies: dict = {}
-    base = jax.random.PRNGKey(args.seed)
     t_start = time.time()
+
+    def report(row, trials, env, start, goal):
+        seed_index = row["seed_index"]
+        tag = "" if seed_index is None else f" seed {seed_index}"
+        fresh = row["compile_s"] is not None
+        print(f"scenario {row['scenario']} {SHORT[row['direction']]} {row['method']}{tag}: {row['successes']}/"
+              f"{row['trials']} success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
+              f"{row['timeouts']} time-outs ({row['compile_s'] if fresh else row['run_s']:.1f} s"
+              f"{' incl. compile' if fresh else ''})", flush=True)
+        stem = f"s{row['scenario']}_{row['direction']}" + ("" if seed_index is None else f"_seed{seed_index}")
+        np.savez_compressed(out_dir / f"trajectories_{stem}.npz", positions=trials["positions"].astype(np.float32),
+                            steps=trials["steps"], outcome=trials["outcome"], start=np.asarray(start),
+                            goal=np.asarray(goal))
+        if args.figures > 0:
+            from docrl_jax import plotting
+            plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"], trials["outcome"],
+                                       start, goal, out_dir / f"trajectory_{stem}.png",
+                                       title=f"{row['method']}{tag}, scenario {row['scenario']}, "
+                                             f"{SHORT[row['direction']]}", max_trajectories=args.figures)
+
     for scenario in cfg["scenarios"]:
         env = make_eval_env(scenario, args.max_steps, **cfg["env"])
         for seed_index in seed_indices:
@@ -530,35 +580,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 except RunDirError as e:
                     parser.error(str(e))
             policy, method = policies[seed_index]
-            tag = "" if seed_index is None else f" seed {seed_index}"
-            for direction in cfg["directions"]:
-                start, goal = envs.eval_pair(scenario, direction)
-                # Same trial seeds (wind, noise, jitter) for every method and seed index: paired comparisons.
-                key = jax.random.fold_in(jax.random.fold_in(base, scenario), DIRECTIONS.index(direction))
-                fresh = (id(env), id(policy.act), id(policy.init_carry), args.max_steps) not in _ROLLOUTS
-                t0 = time.time()
-                trials = run_trials(env, policy, start, goal, key, args.trials, args.max_steps,
-                                    NOMINAL_YAW[direction])
-                elapsed = time.time() - t0
-                row = {"method": method, "seed_index": seed_index, "scenario": scenario, "direction": direction,
-                       **summarize(trials), "compile_s": None, "run_s": None,
-                       ("compile_s" if fresh else "run_s"): round(elapsed, 2)}  # a fresh call includes compiling
+            for row, trials in evaluate_policy(policy, method, [scenario], cfg["directions"], args.trials,
+                                               args.max_steps, args.seed, cfg["env"], seed_index, report):
                 rows.append(row)
                 trial_rows += [{**t, "seed_index": seed_index}
-                               for t in trial_table(method, scenario, direction, trials)]
-                print(f"scenario {scenario} {SHORT[direction]} {method}{tag}: {row['successes']}/{row['trials']} "
-                      f"success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
-                      f"{row['timeouts']} time-outs ({elapsed:.1f} s{' incl. compile' if fresh else ''})", flush=True)
-                stem = f"s{scenario}_{direction}" + ("" if seed_index is None else f"_seed{seed_index}")
-                np.savez_compressed(out_dir / f"trajectories_{stem}.npz",
-                                    positions=trials["positions"].astype(np.float32), steps=trials["steps"],
-                                    outcome=trials["outcome"], start=np.asarray(start), goal=np.asarray(goal))
-                if args.figures > 0:
-                    from docrl_jax import plotting
-                    plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"],
-                                               trials["outcome"], start, goal, out_dir / f"trajectory_{stem}.png",
-                                               title=f"{method}{tag}, scenario {scenario}, {SHORT[direction]}",
-                                               max_trajectories=args.figures)
+                               for t in trial_table(method, scenario, row["direction"], trials)]
     meta["wall_time_s"] = round(time.time() - t_start, 2)
     aggs = aggregate_seeds(rows) if args.run is not None else []
     write_outputs(out_dir, rows, trial_rows, meta, aggs)

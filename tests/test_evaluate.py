@@ -332,3 +332,15 @@ def test_aggregate_seeds_pools_exactly():
     assert agg["successes_std"] == pytest.approx(np.std([7, 3, 0]))
     md = evaluate.markdown_table(rows, seed_rows=[agg])
     assert "## Over seeds" in md and "[7, 3, 0]" in md and "W-A m #2" in md
+
+
+def test_evaluate_policy_is_deterministic_per_seed(env):
+    kw = dict(scenarios=[1], directions=["air_to_water"], num_trials=N, max_steps=MAX_STEPS,
+              env_overrides={"z_bounds": LOW_FLOOR})
+    (row_a, a), = evaluate.evaluate_policy(straight_line(), "oracle", seed=5, **kw)
+    (row_b, b), = evaluate.evaluate_policy(straight_line(), "oracle", seed=5, **kw)
+    (_, c), = evaluate.evaluate_policy(straight_line(), "oracle", seed=6, **kw)
+    assert row_a["compile_s"] is None and row_a["run_s"] is not None   # the module's compiled rollout
+    np.testing.assert_array_equal(a["positions"], b["positions"])
+    assert not np.array_equal(a["positions"], c["positions"])
+    assert row_a["successes"] == N and row_a["scenario"] == 1 and row_a["direction"] == "air_to_water"
