@@ -258,6 +258,8 @@ def write_outputs(out_dir: Path, rows: list[dict], trial_rows: list[dict], meta:
     row per trial), results.json (all of it, plus the run's settings in "meta")."""
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "results.md").write_text(markdown_table(rows, seed_rows=seed_rows))
+    r4 = lambda d: {k: round(v, 4) if isinstance(v, float) and math.isfinite(v) else v for k, v in d.items()}
+    rows, seed_rows = [r4(r) for r in rows], [r4(r) for r in seed_rows]
     with open(out_dir / "results.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
         w.writeheader()
