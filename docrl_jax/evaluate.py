@@ -466,11 +466,16 @@ def parse_seed_indices(text: str) -> list[int]:
 
 def load_policy_for(args, env_params, seed_index: int) -> tuple[Any, str]:
     """(policy, label) for --policy or for one seed of --run (the trainer is imported lazily)."""
+    from docrl_jax.policy import RunDirError
     if args.policy is not None:
         from docrl_jax.baselines.bba import make_bba
         default = "BBA" if args.bba_depth_phase == "after" else f"BBA ({args.bba_depth_phase})"
         return make_bba(env_params, depth_phase=args.bba_depth_phase), args.label or default
-    from docrl_jax.train import load_policy  # lazily: baselines need no trainer
+    try:
+        from docrl_jax.train import load_policy  # lazily: baselines need no trainer
+    except ImportError as e:
+        raise RunDirError(f"--run needs the trainer module docrl_jax.train, which cannot be imported here ({e}); "
+                          f"built-in policies work without it: --policy {', '.join(POLICIES)}") from None
     policy = load_policy(args.run, seed_index=seed_index)
     return policy, args.label or Path(args.run).resolve().name
 

@@ -344,3 +344,14 @@ def test_evaluate_policy_is_deterministic_per_seed(env):
     np.testing.assert_array_equal(a["positions"], b["positions"])
     assert not np.array_equal(a["positions"], c["positions"])
     assert row_a["successes"] == N and row_a["scenario"] == 1 and row_a["direction"] == "air_to_water"
+
+
+def test_cli_run_without_trainer_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    import sys
+    monkeypatch.setitem(sys.modules, "docrl_jax.train", None)   # import of docrl_jax.train raises ImportError
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.yaml").write_text("a: 1\n")
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(run), "--scenarios", "1", "--out", str(tmp_path / "o")])
+    assert e.value.code == 2 and "needs the trainer module docrl_jax.train" in capsys.readouterr().err
