@@ -1,0 +1,357 @@
+"""The evaluator on scripted policies with known outcomes, its metrics, outputs and CLI errors.
+
+One env and one compiled rollout per module (the scripted oracle and the diver share it)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import jax
+import numpy as np
+import pytest
+
+import docrl_jax.envs as envs
+from docrl_jax import evaluate, paper_results, plotting
+from docrl_jax.baselines.scripted import straight_line
+from docrl_jax.policy import RunDirError
+
+MAX_STEPS = 200
+LOW_FLOOR = (-3.0, 4.8)  # z bounds below the floor (top -1.3), so a dive ends on the floor
+N = 6
+
+
+@pytest.fixture(scope="module")
+def env():
+    # Scenario 1 (empty tank). The vertical bound is lowered below the floor (top -1.3) so a dive
+    # ends on the floor (a collision) rather than at the -1.1 bound.
+    return evaluate.make_eval_env(1, MAX_STEPS, z_bounds=LOW_FLOOR)
+
+
+@pytest.fixture(scope="module")
+def oracle_trials(env):
+    start, goal = envs.eval_pair(1, "air_to_water")
+    return evaluate.run_trials(env, straight_line(), start, goal, jax.random.PRNGKey(0), N, MAX_STEPS)
+
+
+@pytest.fixture(scope="module")
+def dive_trials(env):
+    start, goal = envs.eval_pair(1, "air_to_water")
+    return evaluate.run_trials(env, straight_line(dive=True), start, goal, jax.random.PRNGKey(1), N, MAX_STEPS)
+
+
+def test_oracle_always_arrives_in_empty_tank(oracle_trials):
+    assert oracle_trials["success"].all(), evaluate.summarize(oracle_trials)
+    assert (oracle_trials["final_distance"] < 0.5).all()
+    s = evaluate.summarize(oracle_trials)
+    assert s["successes"] == N and s["collisions"] == s["timeouts"] == s["out_of_bounds"] == 0
+    # Straight line (0,0,2.5) -> (2,3,-1) is 4.9 m; the path is barely longer.
+    assert 4.0 < s["path_length_mean"] < 6.5
+    # It starts in air and ends in water: both times positive.
+    assert s["t_air_mean"] > 0 and s["t_water_mean"] > 0
+
+
+def test_dive_always_collides_with_floor(dive_trials):
+    assert dive_trials["collision"].all(), evaluate.summarize(dive_trials)
+    assert not dive_trials["success"].any()
+    final_z = dive_trials["positions"][np.arange(N), dive_trials["steps"], 2]
+    assert (final_z < -1.1).all() and (final_z > -1.4).all()
+
+
+@pytest.mark.parametrize("which", ["oracle", "dive"])
+def test_t_air_plus_t_water_is_trial_time(which, oracle_trials, dive_trials, env):
+    t = oracle_trials if which == "oracle" else dive_trials
+    np.testing.assert_allclose(t["t_air"] + t["t_water"], t["steps"] * env.control_dt, atol=1e-6)
+    np.testing.assert_allclose(t["time"], t["steps"] * env.control_dt, atol=1e-6)
+    assert (t["steps"] >= 1).all() and (t["steps"] <= MAX_STEPS).all()
+    # Records are frozen after the end: the last recorded pose repeats the terminal one.
+    i = int(np.argmin(t["steps"]))
+    np.testing.assert_allclose(t["positions"][i, t["steps"][i]:], t["positions"][i, -1][None].repeat(
+        MAX_STEPS + 1 - t["steps"][i], 0))
+
+
+def test_trials_differ_by_seed_and_starts_are_jittered(oracle_trials):
+    sp = oracle_trials["start_positions"]
+    assert np.abs(sp[:, :2]).max() <= 0.1 + 1e-6 and np.ptp(sp[:, 0]) > 0
+    assert np.abs(oracle_trials["start_yaws"]).max() <= 0.1 + 1e-6
+    assert len(set(np.round(oracle_trials["path_length"], 4))) > 1
+
+
+def test_rollout_and_env_are_cached(env):
+    p1, p2 = straight_line(), straight_line(dive=True)
+    assert evaluate.make_rollout(env, p1, MAX_STEPS) is evaluate.make_rollout(env, p2, MAX_STEPS)
+    assert evaluate.make_eval_env(1, MAX_STEPS, z_bounds=list(LOW_FLOOR)) is env
+
+
+def test_metrics_on_synthetic_records():
+    # Outcome, time split and path length from hand-made records (no compile): trial 0 runs out of
+    # steps, trial 1 arrives after 2 steps.
+    T = 4
+    out = {"taken": np.array([[1, 1, 1, 1], [1, 1, 0, 0]], bool),
+           "underwater_before": np.array([[0, 0, 1, 1], [1, 1, 1, 1]], bool),
+           "positions": np.cumsum(np.ones((2, T + 1, 3)), axis=1),
+           "rewards": np.zeros((2, T)), "arrived": np.array([False, True]), "collision": np.array([False, False]),
+           "out_of_bounds": np.array([False, False]), "terminated": np.array([False, False]),
+           "final_distance": np.array([3.0, 0.1])}
+    out["positions"][1, 3:] = out["positions"][1, 2]
+    m = evaluate._trial_metrics(out, 0.2, np.zeros((2, 3)), np.zeros(2))
+    assert list(m["outcome"]) == [evaluate.OUTCOMES.index("timeout"), evaluate.OUTCOMES.index("success")]
+    np.testing.assert_allclose(m["t_air"], [0.4, 0.0])
+    np.testing.assert_allclose(m["t_water"], [0.4, 0.4])
+    np.testing.assert_allclose(m["path_length"], [4 * np.sqrt(3), 2 * np.sqrt(3)])
+    s = evaluate.summarize(m)
+    assert s["successes"] == 1 and s["timeouts"] == 1 and s["t_water_mean"] == pytest.approx(0.4)
+
+
+def test_env_must_terminate_on_arrival():
+    env = envs.make(scenario=1)
+    with pytest.raises(ValueError, match="terminate_on_arrival"):
+        evaluate.run_trials(env, straight_line(), (0, 0, 2.5), (2, 3, -1), jax.random.PRNGKey(0), 2)
+
+
+# ------------------------------------------------------------------ outputs
+
+def test_outputs_table_csv_json(tmp_path, oracle_trials):
+    row = {"method": "oracle", "scenario": 2, "direction": "air_to_water", **evaluate.summarize(oracle_trials),
+           "compile_s": 1.0, "run_s": None}
+    trial_rows = evaluate.trial_table("oracle", 2, "air_to_water", oracle_trials)
+    evaluate.write_outputs(tmp_path, [row], trial_rows, {"x": 1})
+    md = (tmp_path / "results.md").read_text()
+    assert "| Test | t_air (s) | t_water (s) | Success |" in md
+    assert "A-W oracle" in md and f"{N}/{N}" in md
+    assert "A-W DoCRL-D (paper) | 14.55 ± 0.87 | 11.19 ± 2.86 | 100/100" in md
+    rows = list(csv.DictReader(open(tmp_path / "results.csv")))
+    assert rows[0]["successes"] == str(N)
+    trials = list(csv.DictReader(open(tmp_path / "trials.csv")))
+    assert len(trials) == N and all(t["outcome"] == "success" for t in trials)
+    js = json.loads((tmp_path / "results.json").read_text())
+    assert js["results"][0]["successes"] == N and len(js["trials"]) == N
+
+
+def test_trajectory_figure(tmp_path, env, oracle_trials):
+    start, goal = envs.eval_pair(1, "air_to_water")
+    path = plotting.plot_trajectories(env.mj_model, oracle_trials["positions"], oracle_trials["steps"],
+                                      oracle_trials["outcome"], start, goal, tmp_path / "t.png", title="oracle")
+    assert path.stat().st_size > 10_000
+
+
+def test_scene_solids_scenario_3():
+    import mujoco
+    from docrl_jax.envs.huauv import _scene_path
+    s = plotting.scene_solids(mujoco.MjModel.from_xml_path(_scene_path(3)))
+    assert s["tank"] == pytest.approx(4.9) and s["floor_top"] == pytest.approx(-2.0)
+    assert len(s["boxes"]) + len(s["capsules"]) == 15
+
+
+def test_paper_table():
+    assert len(paper_results.TABLE_I) == 10
+    assert paper_results.lookup("BBA", "water_to_air")["success"] == 32
+    assert paper_results.lookup("DoCRL-D", "air_to_water")["t_air"] == (14.55, 0.87)
+    with pytest.raises(KeyError, match="methods"):
+        paper_results.lookup("PPO", "air_to_water")
+
+
+# ------------------------------------------------------------------ learning curves
+
+def _write_metrics(path, seeds, n=20, offset=0.0):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["env_steps", "wall_time_s", "seed", "success_rate", "episode_return", "extra"])
+        for s in seeds:
+            for i in range(n):
+                w.writerow([i * 1000 + s * 7, i * 2.0 + s, s, min(1.0, i / n + offset), 10 * i + s, ""])
+
+
+def test_learning_curves(tmp_path):
+    a, b = tmp_path / "docrl_d" / "metrics.csv", tmp_path / "docrl_s" / "metrics.csv"
+    _write_metrics(a, [0, 1, 2])
+    _write_metrics(b, [0, 1], offset=0.2)
+    (out,) = plotting.plot_learning_curves([a, b], tmp_path / "figs")
+    assert out.exists() and out.stat().st_size > 10_000
+    seeds = plotting.read_metrics(a)
+    assert sorted(seeds) == [0, 1, 2]
+    grid, mean, std, n = plotting.aggregate_curves([(s["env_steps"], s["episode_return"]) for s in seeds.values()])
+    assert n == 3 and grid[0] == pytest.approx(14) and grid[-1] == pytest.approx(19000)
+    assert np.all(std >= 0) and mean[-1] == pytest.approx(np.mean([190 + s for s in range(3)]), abs=0.5)
+
+
+def test_learning_curves_missing_column(tmp_path):
+    p = tmp_path / "metrics.csv"
+    p.write_text("env_steps,seed\n1,0\n")
+    with pytest.raises(ValueError, match="success_rate"):
+        plotting.read_metrics(p)
+
+
+# ------------------------------------------------------------------ run dirs and the CLI
+
+def test_check_run_dir(tmp_path):
+    with pytest.raises(RunDirError, match="does not exist"):
+        evaluate.check_run_dir(tmp_path / "nope")
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "metrics.csv").write_text("x\n")
+    with pytest.raises(RunDirError, match="no config.yaml"):
+        evaluate.check_run_dir(tmp_path / "run")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(RunDirError, match="not a directory"):
+        evaluate.check_run_dir(tmp_path / "file")
+    (tmp_path / "run" / "config.yaml").write_text("a: 1\n")
+    assert evaluate.check_run_dir(tmp_path / "run") == tmp_path / "run"
+
+
+@pytest.fixture
+def no_compile(monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("compiled before the arguments were checked")
+    monkeypatch.setattr(evaluate, "make_rollout", boom)
+    monkeypatch.setattr(evaluate, "make_eval_env", boom)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--policy", "ppo"], "valid choices: bba"),
+    (["--policy", "bba", "--scenarios", "1,4"], "valid scenarios are 1, 2, 3"),
+    (["--policy", "bba", "--scenarios", "one"], "valid scenarios are 1, 2, 3"),
+    (["--policy", "bba", "--trials", "0"], "--trials 0: must be a positive integer"),
+    (["--policy", "bba", "--trials", "-3"], "must be a positive integer"),
+    (["--policy", "bba", "--max-steps", "0"], "must be a positive integer"),
+    (["--policy", "bba", "--directions", "up"], "valid directions are air_to_water"),
+    (["--policy", "bba", "--env", "windy=1"], "unknown env parameter; valid names:"),
+    (["--policy", "bba", "--env", "wind"], "expected KEY=VALUE"),
+    (["--policy", "bba", "--bba-depth-phase", "never"], "valid choices are after, first"),
+    ([], "nothing to do"),
+    (["--run", "/nonexistent/run_dir"], "does not exist"),
+    (["--curves", "/nonexistent/run_dir"], "no metrics.csv"),
+])
+def test_cli_errors(argv, message, capsys, no_compile, tmp_path):
+    with pytest.raises(SystemExit) as e:
+        evaluate.main([*argv, "--out", str(tmp_path / "o")])
+    assert e.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_cli_run_dir_without_config(tmp_path, capsys, no_compile):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.csv").write_text("env_steps\n")
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(run), "--out", str(tmp_path / "o")])
+    assert e.value.code == 2 and "no config.yaml" in capsys.readouterr().err
+
+
+def test_cli_run_and_policy_are_exclusive(capsys, no_compile):
+    with pytest.raises(SystemExit):
+        evaluate.main(["--run", "x", "--policy", "bba"])
+    assert "not allowed with" in capsys.readouterr().err
+
+
+def test_cli_curves_only(tmp_path, no_compile):
+    _write_metrics(tmp_path / "runA" / "metrics.csv", [0, 1])
+    assert evaluate.main(["--curves", str(tmp_path / "runA"), "--out", str(tmp_path / "o")]) == 0
+    assert (tmp_path / "o" / "learning_curves.png").exists()
+
+
+# ------------------------------------------------------------------ --run through a stand-in trainer
+
+@pytest.fixture
+def fake_trainer(monkeypatch, tmp_path):
+    """A stand-in `docrl_jax.train` whose load_policy returns the scripted oracle for seeds 0-1."""
+    import sys
+    import types
+    mod = types.ModuleType("docrl_jax.train")
+    oracle = straight_line()
+
+    def load_policy(run_dir, seed_index=0):
+        evaluate.check_run_dir(run_dir)
+        if seed_index > 1:
+            raise RunDirError(f"run directory {run_dir!r} has seeds 0, 1; no seed index {seed_index}")
+        return oracle
+    mod.load_policy = load_policy
+    monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
+    run = tmp_path / "oracle_run"
+    run.mkdir()
+    (run / "config.yaml").write_text("algo: oracle\n")
+    return run
+
+
+def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert evaluate.main(["--run", str(fake_trainer), "--seed-index", "0,1", "--trials", str(N), "--scenarios", "1",
+                          "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "2",
+                          "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]",  # the module's env and N: no new compile
+                          "--out", str(out)]) == 0
+    md = (out / "results.md").read_text()
+    assert "## Over seeds" in md and "| A-W oracle_run | " in md and f"{N:.1f} ± 0.0/{N} [{N}, {N}]" in md
+    js = json.loads((out / "results.json").read_text())
+    assert [r["seed_index"] for r in js["results"]] == [0, 1] and js["over_seeds"][0]["successes_mean"] == N
+    assert len(js["trials"]) == 2 * N and js["meta"]["seed_indices"] == [0, 1]
+    assert (out / "trajectory_s1_air_to_water_seed0.png").exists()
+    assert (out / "trajectories_s1_air_to_water_seed1.npz").exists()
+
+
+def test_cli_run_bad_seed_index(fake_trainer, tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(fake_trainer), "--seed-index", "7", "--scenarios", "1", "--out", str(tmp_path)])
+    assert e.value.code == 2 and "no seed index 7" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(fake_trainer), "--seed-index", "-1", "--out", str(tmp_path)])
+    assert e.value.code == 2 and "expected integers >= 0" in capsys.readouterr().err
+
+
+def test_figure3_and_plotting_cli(tmp_path, oracle_trials, dive_trials):
+    start, goal = envs.eval_pair(1, "air_to_water")
+    for name, t in (("oracle", oracle_trials), ("dive", dive_trials)):
+        d = tmp_path / name
+        d.mkdir()
+        (d / "results.json").write_text(json.dumps({"results": [{"method": name}]}))
+        for direction in evaluate.DIRECTIONS:  # the same trials stand in for both directions
+            np.savez(d / f"trajectories_s1_{direction}.npz", positions=t["positions"], steps=t["steps"],
+                     outcome=t["outcome"], start=np.asarray(start), goal=np.asarray(goal))
+    out = plotting.plot_figure3([tmp_path / "oracle", tmp_path / "dive"], 1, tmp_path / "fig3.png")
+    assert out.stat().st_size > 20_000
+    assert plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "1", "--out",
+                          str(tmp_path / "f.png")]) == 0
+    with pytest.raises(SystemExit):
+        plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "2", "--out", str(tmp_path / "g.png")])
+
+
+def test_aggregate_seeds_pools_exactly():
+    rng = np.random.default_rng(0)
+    samples = [rng.normal(10, 2, 7), rng.normal(14, 1, 3), np.array([])]   # seed 2: no successes
+    rows = []
+    for k, x in enumerate(samples):
+        mean, std = evaluate._mean_std(x)
+        rows.append({"method": "m", "seed_index": k, "scenario": 2, "direction": "water_to_air", "trials": 10,
+                     "successes": x.size, "success_rate": x.size / 10, "collisions": 10 - x.size,
+                     "out_of_bounds": 0, "timeouts": 0, **{f"{n}_{s}": v for n in ("t_air", "t_water", "time",
+                                                                                   "path_length")
+                                                           for s, v in (("mean", mean), ("std", std))}})
+    (agg,) = evaluate.aggregate_seeds(rows)
+    pooled = np.concatenate(samples)
+    assert agg["t_air_mean"] == pytest.approx(pooled.mean()) and agg["t_air_std"] == pytest.approx(pooled.std())
+    assert agg["successes_per_seed"] == [7, 3, 0] and agg["successes_mean"] == pytest.approx(10 / 3)
+    assert agg["successes_std"] == pytest.approx(np.std([7, 3, 0]))
+    md = evaluate.markdown_table(rows, seed_rows=[agg])
+    assert "## Over seeds" in md and "[7, 3, 0]" in md and "W-A m #2" in md
+
+
+def test_evaluate_policy_is_deterministic_per_seed(env):
+    kw = dict(scenarios=[1], directions=["air_to_water"], num_trials=N, max_steps=MAX_STEPS,
+              env_overrides={"z_bounds": LOW_FLOOR})
+    (row_a, a), = evaluate.evaluate_policy(straight_line(), "oracle", seed=5, **kw)
+    (row_b, b), = evaluate.evaluate_policy(straight_line(), "oracle", seed=5, **kw)
+    (_, c), = evaluate.evaluate_policy(straight_line(), "oracle", seed=6, **kw)
+    assert row_a["compile_s"] is None and row_a["run_s"] is not None   # the module's compiled rollout
+    np.testing.assert_array_equal(a["positions"], b["positions"])
+    assert not np.array_equal(a["positions"], c["positions"])
+    assert row_a["successes"] == N and row_a["scenario"] == 1 and row_a["direction"] == "air_to_water"
+
+
+def test_cli_run_without_trainer_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    import sys
+    monkeypatch.setitem(sys.modules, "docrl_jax.train", None)   # import of docrl_jax.train raises ImportError
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.yaml").write_text("a: 1\n")
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(run), "--scenarios", "1", "--out", str(tmp_path / "o")])
+    assert e.value.code == 2 and "needs the trainer module docrl_jax.train" in capsys.readouterr().err
