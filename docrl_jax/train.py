@@ -38,6 +38,7 @@ import docrl_jax.envs as envs
 from docrl_jax.algorithms import Agent, AgentState, make_agent
 from docrl_jax.config import Config, env_kwargs
 from docrl_jax.replay import BufferState, make_sequence_buffer
+from docrl_jax.run_dir import load_policy  # noqa: F401  (the evaluator's entry point: docrl_jax.train.load_policy)
 from docrl_jax.train_eval import make_evaluate
 
 
@@ -52,6 +53,8 @@ class RunnerState:
     ep_return: jax.Array     # [num_envs] running return of the current episode
     ep_arrivals: jax.Array   # [num_envs] goals reached in the current episode
     env_steps: jax.Array     # () int32 env steps done, all envs together
+    total_steps: jax.Array   # () int32 env steps of the whole run (schedules use env_steps / total_steps);
+                             # state rather than a constant, so runs of any length share one program
     key: jax.Array
 
 
@@ -64,6 +67,7 @@ class Trainer(NamedTuple):
     steps_per_chunk: int
     total_env_steps: int     # total_env_steps rounded up to whole chunks
     init: Callable           # key -> RunnerState (one seed)
+    init_total: Callable     # (key, total_steps) -> RunnerState (one seed)
     chunk: Callable          # RunnerState -> (RunnerState, chunk metrics) (one seed)
     train: Callable          # key -> (RunnerState, metrics stacked over chunks) (one seed)
     evaluate: Callable       # (actor_params, key) -> eval metrics (one seed)
@@ -95,6 +99,9 @@ def make_trainer(config: Config) -> Trainer:
         return agent.actor.init_carry(batch_shape)
 
     def init(key) -> RunnerState:
+        return init_total(key, total)
+
+    def init_total(key, total_steps) -> RunnerState:
         k_agent, k_env, k_run = jax.random.split(key, 3)
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, n))
         example = _buffer_step(env_state.obs[0], jnp.zeros(3), jnp.zeros(()), env_state.obs[0], jnp.zeros((), bool),
@@ -102,12 +109,13 @@ def make_trainer(config: Config) -> Trainer:
         return RunnerState(agent=agent.init(k_agent), buffer=buffer.init(example), env=env_state,
                            carry=init_carry((n,)), noise=agent.init_noise(n), start=jnp.ones(n, bool),
                            ep_return=jnp.zeros(n), ep_arrivals=jnp.zeros(n, jnp.int32),
-                           env_steps=jnp.zeros((), jnp.int32), key=k_run)
+                           env_steps=jnp.zeros((), jnp.int32),
+                           total_steps=jnp.asarray(total_steps, jnp.int32), key=k_run)
 
     def chunk(rs: RunnerState):
         def iteration(rs: RunnerState, _):
             key, k_act, k_rand, k_upd = jax.random.split(rs.key, 4)
-            progress = rs.env_steps.astype(jnp.float32) / total
+            progress = rs.env_steps.astype(jnp.float32) / rs.total_steps.astype(jnp.float32)
 
             # 1. Act: reset the carry where an episode starts (all steps when memoryless), explore.
             zero = init_carry((n,))
@@ -154,7 +162,8 @@ def make_trainer(config: Config) -> Trainer:
 
             rs = RunnerState(agent=agent_state, buffer=buf, env=env_state, carry=carry, noise=noise, start=done,
                              ep_return=jnp.where(done, 0.0, ep_return),
-                             ep_arrivals=jnp.where(done, 0, arrivals), env_steps=env_steps, key=key)
+                             ep_arrivals=jnp.where(done, 0, arrivals), env_steps=env_steps,
+                             total_steps=rs.total_steps, key=key)
             return rs, {**episodes, **upd, "learn": learn}
 
         rs, m = jax.lax.scan(iteration, rs, None, length=iters_per_chunk)
@@ -165,7 +174,7 @@ def make_trainer(config: Config) -> Trainer:
 
     evaluate = make_evaluate(config, agent.act, init_carry, memory)
     return Trainer(config=config, agent=agent, env=env, iters_per_chunk=iters_per_chunk, num_chunks=num_chunks,
-                   steps_per_chunk=steps_per_chunk, total_env_steps=total, init=init, chunk=chunk, train=train,
+                   steps_per_chunk=steps_per_chunk, total_env_steps=total, init=init, init_total=init_total, chunk=chunk, train=train,
                    evaluate=evaluate, init_carry=init_carry, memory=memory)
 
 
