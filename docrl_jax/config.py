@@ -65,7 +65,7 @@ class AgentConfig:
     tau: float = _f(0.001, "Soft target update rate (paper silent; orig TD3/DDPG 0.001, SAC 0.01).")
     policy_freq: int = _f(0, "Critic updates per actor (and target) update. 0 = the paper's schedule "
                              "int(1/(0.5 - t/(3*max_steps))) with t = max_steps * training progress "
-                             "(env steps done / total_env_steps): 2, then 3 from 50%, 4 from 75%, 5 from 90%. "
+                             "(env steps done / total_env_steps): 2, then 3 from 50%, 4 from 75%, 5 from 90% (6 on the last step). "
                              "k > 0 = fixed delay k (orig TD3 2, SAC 1).")
     policy_noise: float = _f(0.2, "TD3 target-policy smoothing: std of the Gaussian noise on a' (paper "
                                   "silent on the value; TD3 paper 0.2; the original code had it commented out).")

@@ -40,8 +40,8 @@ def policy_freq(fixed: int, progress: jax.Array) -> jax.Array:
     """Critic updates per actor update. fixed > 0: that constant. fixed == 0: the paper's
     int(1 / (0.5 - t / (3 * max_steps))) with t = max_steps * progress, progress = env steps done /
     total_env_steps clipped to [0, 1]; the denominator stays >= 1/6, so the result is 2, 3 (from 50%),
-    4 (from 75%), 5 (from 90%) and never divides by zero or goes negative. The 1e-6 keeps float32
-    rounding from turning 3.0 into 2."""
+    4 (from 75%), 5 (from 90%), 6 on the very last step, and never divides by zero or goes negative.
+    The 1e-6 keeps float32 rounding from turning an exact 3.0 into 2."""
     if fixed > 0:
         return jnp.asarray(fixed, jnp.int32)
     p = jnp.clip(progress, 0.0, 1.0)
