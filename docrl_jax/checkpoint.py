@@ -16,6 +16,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import orbax.checkpoint as ocp
 
 CHECKPOINT_DIR = "checkpoints"
@@ -41,7 +42,9 @@ def _unpack(abstract_tree: Any, packed: dict[str, Any]) -> Any:
     leaves, treedef = jax.tree.flatten(abstract_tree)
     out = [packed[f"{i:05d}"] if _size(leaf.shape) else jnp.zeros(leaf.shape, leaf.dtype)
            for i, leaf in enumerate(leaves)]
-    return jax.tree.unflatten(treedef, [jnp.asarray(x) for x in out])
+    # Via numpy: orbax returns arrays *committed* to a device, while the trainer's own arrays are not,
+    # and jit would compile the chunk again for the different placement.
+    return jax.tree.unflatten(treedef, [jnp.asarray(np.asarray(x)) for x in out])
 
 
 def manager(run_dir: str | Path, keep: int | None = None, create: bool = False) -> ocp.CheckpointManager:

@@ -103,6 +103,13 @@ class _Interrupt:
             signal.signal(signal.SIGINT, self._old)
 
 
+def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
+    """Keys of the evaluation at `env_steps`: a function of seed and step only, so a resumed run
+    evaluates on exactly the episodes an uninterrupted one would."""
+    return jnp.stack([jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(s), _EVAL_SALT), env_steps)
+                      for s in seeds])
+
+
 def programs(config: Config):
     """(init, chunk, evaluate), jitted and vmapped over seeds; the chunk donates its runner state."""
     # The programs do not depend on the name, the seed values (keys are arguments), the run length
@@ -135,7 +142,6 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     trainer = make_trainer(config)
     seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    eval_keys = jnp.stack([jax.random.fold_in(jax.random.PRNGKey(s), _EVAL_SALT) for s in seeds])
     init, chunk, evaluate = programs(config)
     mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
     total = jnp.asarray(trainer.total_env_steps, jnp.int32)
@@ -172,7 +178,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
 
     def do_eval(steps: int):
         nonlocal pending
-        ev = jax.device_get(evaluate(state.agent.actor, jax.vmap(jax.random.fold_in, (0, None))(eval_keys, steps)))
+        ev = jax.device_get(evaluate(state.agent.actor, eval_keys(seeds, steps)))
         rows = []
         for i, seed in enumerate(seeds):
             p = {k: v[i] for k, v in pending.items()}

@@ -159,20 +159,21 @@ def test_lstm_burn_in_starts_from_the_stored_carry_and_resets_at_episode_start()
     carry0 = (jax.random.normal(jax.random.PRNGKey(8), (B, 5, 3)), jax.random.normal(jax.random.PRNGKey(9), (B, 5, 3)))
     batch["carry"] = carry0
     seq = split_batch(batch, burn_in=2)
-    outs, after = run_actor(agent.actor, state.actor, seq, memory=True)
+    outs, after = jax.jit(run_actor, static_argnums=(0, 3))(agent.actor, state.actor, seq, True)
     # By hand: step by step from the stored carry at t=0, zeroing it where an episode starts.
-    carry = jax.tree.map(lambda x: x[:, 0], carry0)
+    carry = jax.tree.map(lambda x: np.asarray(x[:, 0]), carry0)
     expected = []
+    apply = jax.jit(agent.actor.apply)
     for t in range(5):
-        reset = batch["start"][:, t][:, None]
-        carry = jax.tree.map(lambda x: jnp.where(reset, 0.0, x), carry)
-        carry, out = agent.actor.apply(state.actor, carry, batch["obs"][:, t])
+        reset = np.asarray(batch["start"][:, t])[:, None]
+        carry = jax.tree.map(lambda x: np.where(reset, 0.0, x), carry)
+        carry, out = apply(state.actor, carry, batch["obs"][:, t])
         if t >= 2:
             expected.append(out)
             np.testing.assert_allclose(np.asarray(after[1][t - 2]), np.asarray(carry[1]), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(np.asarray(outs), np.asarray(jnp.stack(expected)), rtol=1e-5, atol=1e-6)
     # No gradient flows through the burn-in: only the trained steps' graph depends on the params.
-    g = jax.grad(lambda prm: jnp.sum(run_actor(agent.actor, prm, seq, True)[0]))(state.actor)
+    g = jax.jit(jax.grad(lambda prm: jnp.sum(run_actor(agent.actor, prm, seq, True)[0])))(state.actor)
 
     def manual(prm):
         cc = jax.tree.map(lambda x: x[:, 0], carry0)
@@ -183,7 +184,7 @@ def test_lstm_burn_in_starts_from_the_stored_carry_and_resets_at_episode_start()
             cc, out = agent.actor.apply(pp, cc, batch["obs"][:, t])
             total = out.sum() if t == 2 else total + out.sum() if t > 2 else 0.0
         return total
-    g2 = jax.grad(lambda prm: manual(jax.tree.map(lambda x: x, prm)))(state.actor)
+    g2 = jax.jit(jax.grad(manual))(state.actor)
     jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-4, atol=1e-6), g, g2)
 
 
