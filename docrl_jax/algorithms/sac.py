@@ -1,0 +1,122 @@
+"""DoCRL-S (paper Algorithm 2): SAC with a tanh-Gaussian LSTM (or MLP) actor, twin critics and a
+learned temperature alpha (orig: log alpha from 0, target entropy -3).
+
+Per gradient update, on a batch of sequences (see `common.split_batch`):
+  target   a' ~ pi(.|s') (online actor; SAC has no target actor), with log-prob logp'
+           y  = r + gamma * (1 - terminated) * (min_i Q'_i(s', a') - alpha * logp')
+  critics  sum_i mean_mask (Q_i(s, a) - y)^2
+  actor    every policy_freq critic updates: mean_mask(alpha * logp(a|s) - min_i Q_i(s, a)), a ~ pi(.|s)
+  alpha    same steps: -mean_mask(log_alpha * (logp + target_entropy)); then soft critic targets.
+log pi(a|s) of a = tanh(u), u = mean + std * eps: sum(log N(u; mean, std) - log(1 - a^2 + 1e-6)) (orig).
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+
+from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, masked_mean, policy_freq, run_actor,
+                                         soft_update, split_batch)
+from docrl_jax.config import Config
+from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
+from docrl_jax.networks import Critic, make_actor
+
+_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+def sample_action(mean, log_std, eps):
+    """Reparameterised tanh-Gaussian sample and its log-probability (summed over action dims)."""
+    u = mean + jnp.exp(log_std) * eps
+    a = jnp.tanh(u)
+    logp = jnp.sum(-0.5 * eps ** 2 - log_std - _HALF_LOG_2PI - jnp.log(1.0 - a ** 2 + 1e-6), axis=-1)
+    return a, logp
+
+
+def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, eps, a_cfg, memory):
+    alpha = jnp.exp(state.log_alpha)
+    _, carries_after = run_actor(actor, jax.lax.stop_gradient(state.actor), seq, memory)
+    _, (mean, log_std) = actor.apply(state.actor, carries_after, seq.next_obs)
+    next_a, next_logp = sample_action(mean, log_std, eps)
+    q_next = jnp.min(critic.apply(state.critic_target, seq.next_obs, next_a), axis=0) - alpha * next_logp
+    y = jax.lax.stop_gradient(seq.reward + a_cfg.gamma * (1.0 - seq.terminated.astype(jnp.float32)) * q_next)
+    q = critic.apply(critic_params, seq.obs, seq.action)
+    loss = sum(masked_mean((q[i] - y) ** 2, seq.mask) for i in range(q.shape[0]))
+    return loss, {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
+
+
+def actor_loss(actor_params, actor, critic, critic_params, log_alpha, seq: SeqBatch, eps, memory):
+    (mean, log_std), _ = run_actor(actor, actor_params, seq, memory)
+    a, logp = sample_action(mean, log_std, eps)
+    q = jnp.min(critic.apply(critic_params, seq.obs, a), axis=0)
+    return masked_mean(jnp.exp(log_alpha) * logp - q, seq.mask), logp
+
+
+def alpha_loss(log_alpha, logp, target_entropy, mask):
+    return -masked_mean(log_alpha * jax.lax.stop_gradient(logp + target_entropy), mask)
+
+
+def make_sac(config: Config) -> Agent:
+    a_cfg, memory = config.agent, config.agent.memory and config.agent.actor == "lstm"
+    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=True)
+    critic = Critic(hidden=a_cfg.critic_hidden, num=2)
+    actor_tx, critic_tx, alpha_tx = adam(a_cfg.actor_lr), adam(a_cfg.critic_lr), adam(a_cfg.alpha_lr)
+    burn_in = config.replay.burn_in
+
+    def init(key):
+        k_a, k_c = jax.random.split(key)
+        obs, act = jnp.zeros((1, OBS_SIZE)), jnp.zeros((1, ACTION_SIZE))
+        actor_params = actor.init(k_a, actor.init_carry((1,)), obs)
+        critic_params = critic.init(k_c, obs, act)
+        log_alpha = jnp.asarray(math.log(a_cfg.init_alpha), jnp.float32)
+        return AgentState(actor=actor_params, actor_target=actor_params, critic=critic_params,
+                          critic_target=critic_params, actor_opt=actor_tx.init(actor_params),
+                          critic_opt=critic_tx.init(critic_params), log_alpha=log_alpha,
+                          alpha_opt=alpha_tx.init(log_alpha), updates=jnp.zeros((), jnp.int32))
+
+    def init_noise(num_envs):
+        return jnp.zeros((num_envs, ACTION_SIZE))  # unused: SAC explores by sampling
+
+    def act(actor_params, carry, obs):
+        """Deterministic action for evaluation: tanh(mean) (orig)."""
+        carry, (mean, _) = actor.apply(actor_params, carry, obs)
+        return carry, jnp.tanh(mean)
+
+    def explore(state, carry, noise, obs, start, key, progress):
+        carry, (mean, log_std) = actor.apply(state.actor, carry, obs)
+        action, _ = sample_action(mean, log_std, jax.random.normal(key, mean.shape))
+        return carry, noise, action
+
+    def update(state: AgentState, batch: dict, key, progress):
+        seq = split_batch(batch, burn_in)
+        k_next, k_pi = jax.random.split(key)
+        eps_next = jax.random.normal(k_next, seq.action.shape)
+        eps_pi = jax.random.normal(k_pi, seq.action.shape)
+        (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
+            state.critic, critic, actor, state, seq, eps_next, a_cfg, memory)
+        c_updates, critic_opt = critic_tx.update(c_grads, state.critic_opt, state.critic)
+        state = state.replace(critic=jax.tree.map(jnp.add, state.critic, c_updates), critic_opt=critic_opt,
+                              updates=state.updates + 1)
+
+        def policy_step(s: AgentState):
+            (a_loss, logp), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
+                s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, memory)
+            a_updates, actor_opt = actor_tx.update(a_grads, s.actor_opt, s.actor)
+            al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, a_cfg.target_entropy, seq.mask)
+            al_update, alpha_opt = alpha_tx.update(al_grad, s.alpha_opt, s.log_alpha)
+            s = s.replace(actor=jax.tree.map(jnp.add, s.actor, a_updates), actor_opt=actor_opt,
+                          log_alpha=s.log_alpha + al_update, alpha_opt=alpha_opt,
+                          critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
+            return s, (a_loss, al_loss)
+
+        freq = policy_freq(a_cfg.policy_freq, progress)
+        do_policy = (state.updates % freq) == 0
+        state, (a_loss, al_loss) = jax.lax.cond(do_policy, policy_step,
+                                                lambda s: (s, (jnp.zeros(()), jnp.zeros(()))), state)
+        metrics = {"critic_loss": c_loss, "actor_loss": a_loss, "alpha_loss": al_loss, "q": c_info["q"],
+                   "alpha": jnp.exp(state.log_alpha), "policy_freq": freq,
+                   "actor_updated": do_policy.astype(jnp.float32)}
+        return state, metrics
+
+    return Agent(actor=actor, init=init, init_noise=init_noise, explore=explore, act=act, update=update)

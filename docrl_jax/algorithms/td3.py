@@ -1,0 +1,112 @@
+"""DoCRL-D (paper Algorithm 1): TD3 with an LSTM (or MLP) actor. With algo "ddpg" the same code is
+the paper's "Det." row: one critic, no target smoothing, actor updated on every critic update.
+
+Per gradient update, on a batch of sequences (see `common.split_batch`):
+  target   a' = clip(pi'(s') + clip(N(0, policy_noise), -noise_clip, noise_clip), -1, 1)
+           y  = r + gamma * (1 - terminated) * min_i Q'_i(s', a')      (truncated steps bootstrap)
+  critics  sum_i mean_mask (Q_i(s, a) - y)^2                          (paper: MSE; orig: Huber)
+  actor    every policy_freq critic updates: -mean_mask Q_1(s, pi(s)), then soft updates of the
+           target actor and critics with tau (paper: inside the delayed branch).
+Exploration: Ornstein-Uhlenbeck noise per env, reset at episode start, scale decayed linearly from
+ou_sigma to ou_sigma_final over training.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, masked_mean, policy_freq, run_actor,
+                                         soft_update, split_batch)
+from docrl_jax.config import Config
+from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
+from docrl_jax.networks import Critic, make_actor
+
+
+def target_values(critic, critic_target_params, next_action, next_obs, reward, terminated, noise, a_cfg):
+    """TD targets y from the target actor's raw next action and a standard-normal `noise` sample."""
+    smooth = jnp.clip(a_cfg.policy_noise * noise, -a_cfg.noise_clip, a_cfg.noise_clip)
+    next_action = jnp.clip(next_action + smooth, -1.0, 1.0)
+    q_next = jnp.min(critic.apply(critic_target_params, next_obs, next_action), axis=0)
+    return reward + a_cfg.gamma * (1.0 - terminated.astype(jnp.float32)) * q_next
+
+
+def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, noise, a_cfg, memory):
+    next_raw, _ = _target_next_action(actor, state.actor_target, seq, memory)
+    y = jax.lax.stop_gradient(target_values(critic, state.critic_target, next_raw, seq.next_obs, seq.reward,
+                                            seq.terminated, noise, a_cfg))
+    q = critic.apply(critic_params, seq.obs, seq.action)                     # [num, T, B]
+    loss = sum(masked_mean((q[i] - y) ** 2, seq.mask) for i in range(q.shape[0]))
+    return loss, {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
+
+
+def _target_next_action(actor, params, seq: SeqBatch, memory):
+    _, carries_after = run_actor(actor, params, seq, memory)
+    _, next_action = actor.apply(params, carries_after, seq.next_obs)
+    return next_action, carries_after
+
+
+def actor_loss(actor_params, actor, critic, critic_params, seq: SeqBatch, memory):
+    action, _ = run_actor(actor, actor_params, seq, memory)
+    return -masked_mean(critic.apply(critic_params, seq.obs, action)[0], seq.mask)
+
+
+def make_td3(config: Config) -> Agent:
+    a_cfg, memory = config.agent, config.agent.memory and config.agent.actor == "lstm"
+    ddpg = a_cfg.algo == "ddpg"
+    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=False)
+    critic = Critic(hidden=a_cfg.critic_hidden, num=1 if ddpg else 2)
+    actor_tx, critic_tx = adam(a_cfg.actor_lr), adam(a_cfg.critic_lr)
+    burn_in = config.replay.burn_in
+
+    def init(key):
+        k_a, k_c = jax.random.split(key)
+        obs, act = jnp.zeros((1, OBS_SIZE)), jnp.zeros((1, ACTION_SIZE))
+        actor_params = actor.init(k_a, actor.init_carry((1,)), obs)
+        critic_params = critic.init(k_c, obs, act)
+        log_alpha = jnp.zeros(())
+        return AgentState(actor=actor_params, actor_target=actor_params, critic=critic_params,
+                          critic_target=critic_params, actor_opt=actor_tx.init(actor_params),
+                          critic_opt=critic_tx.init(critic_params), log_alpha=log_alpha,
+                          alpha_opt=adam(0.0).init(log_alpha), updates=jnp.zeros((), jnp.int32))
+
+    def init_noise(num_envs):
+        return jnp.zeros((num_envs, ACTION_SIZE))
+
+    def act(actor_params, carry, obs):
+        return actor.apply(actor_params, carry, obs)
+
+    def explore(state, carry, noise, obs, start, key, progress):
+        """OU noise (orig 5.1): x <- x + theta (0 - x) + sigma N(0, 1), zeroed at episode start."""
+        carry, action = act(state.actor, carry, obs)
+        sigma = a_cfg.ou_sigma + (a_cfg.ou_sigma_final - a_cfg.ou_sigma) * jnp.clip(progress, 0.0, 1.0)
+        noise = jnp.where(start[:, None], 0.0, noise)
+        noise = noise - a_cfg.ou_theta * noise + sigma * jax.random.normal(key, noise.shape)
+        return carry, noise, jnp.clip(action + noise, -1.0, 1.0)
+
+    def update(state: AgentState, batch: dict, key, progress):
+        seq = split_batch(batch, burn_in)
+        noise = jax.random.normal(key, seq.action.shape) if not ddpg else jnp.zeros(seq.action.shape)
+        (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
+            state.critic, critic, actor, state, seq, noise, a_cfg, memory)
+        c_updates, critic_opt = critic_tx.update(c_grads, state.critic_opt, state.critic)
+        state = state.replace(critic=jax.tree.map(jnp.add, state.critic, c_updates), critic_opt=critic_opt,
+                              updates=state.updates + 1)
+
+        def policy_step(s: AgentState):
+            a_loss, a_grads = jax.value_and_grad(actor_loss)(s.actor, actor, critic, s.critic, seq, memory)
+            a_updates, actor_opt = actor_tx.update(a_grads, s.actor_opt, s.actor)
+            new_actor = jax.tree.map(jnp.add, s.actor, a_updates)
+            s = s.replace(actor=new_actor, actor_opt=actor_opt,
+                          actor_target=soft_update(s.actor_target, new_actor, a_cfg.tau),
+                          critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
+            return s, a_loss
+
+        freq = policy_freq(a_cfg.policy_freq, progress)
+        do_policy = (state.updates % freq) == 0
+        state, a_loss = jax.lax.cond(do_policy, policy_step, lambda s: (s, jnp.zeros(())), state)
+        metrics = {"critic_loss": c_loss, "actor_loss": a_loss, "q": c_info["q"], "policy_freq": freq,
+                   "actor_updated": do_policy.astype(jnp.float32)}
+        return state, metrics
+
+    return Agent(actor=actor, init=init, init_noise=init_noise, explore=explore, act=act, update=update)

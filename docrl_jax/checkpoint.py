@@ -1,0 +1,80 @@
+"""Orbax checkpoints of a run: everything needed to resume, and the actor alone for evaluation.
+
+    <run_dir>/checkpoints/<env_steps>/
+        state/    the whole runner state of every seed (agent, optimisers, replay buffer, envs, keys)
+        policy/   the online actor parameters, stacked over seeds (read by `load_policy`)
+        meta/     JSON: env_steps, chunk, wall_time_s, config name
+
+Orbax cannot write zero-size arrays (MJX keeps a few), so a tree is stored as its non-empty leaves
+keyed by flat index and rebuilt from an abstract tree of the same structure on restore.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import orbax.checkpoint as ocp
+
+CHECKPOINT_DIR = "checkpoints"
+
+
+def _pack(tree: Any) -> dict[str, Any]:
+    return {f"{i:05d}": leaf for i, leaf in enumerate(jax.tree.leaves(tree)) if leaf.size}
+
+
+def _abstract_packed(abstract_tree: Any) -> dict[str, Any]:
+    return {f"{i:05d}": jax.ShapeDtypeStruct(leaf.shape, leaf.dtype)
+            for i, leaf in enumerate(jax.tree.leaves(abstract_tree)) if _size(leaf.shape)}
+
+
+def _size(shape) -> int:
+    n = 1
+    for s in shape:
+        n *= s
+    return n
+
+
+def _unpack(abstract_tree: Any, packed: dict[str, Any]) -> Any:
+    leaves, treedef = jax.tree.flatten(abstract_tree)
+    out = [packed[f"{i:05d}"] if _size(leaf.shape) else jnp.zeros(leaf.shape, leaf.dtype)
+           for i, leaf in enumerate(leaves)]
+    # Via numpy: orbax returns arrays *committed* to a device, while the trainer's own arrays are not,
+    # and jit would compile the chunk again for the different placement.
+    return jax.tree.unflatten(treedef, [jnp.asarray(np.asarray(x)) for x in out])
+
+
+def manager(run_dir: str | Path, keep: int | None = None, create: bool = False) -> ocp.CheckpointManager:
+    options = ocp.CheckpointManagerOptions(max_to_keep=keep, create=create)
+    return ocp.CheckpointManager(Path(run_dir).resolve() / CHECKPOINT_DIR, options=options)
+
+
+def save(mngr: ocp.CheckpointManager, env_steps: int, state: Any, policy_params: Any, meta: dict) -> None:
+    """Writes one checkpoint synchronously (a Ctrl-C right after must not leave it half written)."""
+    mngr.save(env_steps, args=ocp.args.Composite(state=ocp.args.StandardSave(_pack(state)),
+                                                 policy=ocp.args.StandardSave(_pack(policy_params)),
+                                                 meta=ocp.args.JsonSave(meta)), force=True)
+    mngr.wait_until_finished()
+
+
+def latest_step(run_dir: str | Path) -> int | None:
+    path = Path(run_dir) / CHECKPOINT_DIR
+    if not path.is_dir():
+        return None
+    return manager(run_dir).latest_step()
+
+
+def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, abstract_policy: Any = None):
+    """Restores (state, policy_params, meta); pass None for an item you do not need."""
+    items = {"meta": ocp.args.JsonRestore()}
+    if abstract_state is not None:
+        items["state"] = ocp.args.StandardRestore(_abstract_packed(abstract_state))
+    if abstract_policy is not None:
+        items["policy"] = ocp.args.StandardRestore(_abstract_packed(abstract_policy))
+    out = mngr.restore(step, args=ocp.args.Composite(**items))
+    state = _unpack(abstract_state, out["state"]) if abstract_state is not None else None
+    policy = _unpack(abstract_policy, out["policy"]) if abstract_policy is not None else None
+    return state, policy, out["meta"]

@@ -1,0 +1,320 @@
+"""`python -m docrl_jax.train`: runs the compiled chunk repeatedly and, between chunks, logs,
+evaluates and checkpoints. See `docrl_jax.train` for what one chunk does.
+
+    python -m docrl_jax.train --config td3_lstm [--set section.key=value ...] [--run-dir DIR]
+    python -m docrl_jax.train --run-dir DIR --resume [--set train.total_env_steps=...]
+
+Exit codes: 0 done, 2 bad config or run directory, 3 non-finite loss, 130 interrupted (checkpoint saved).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import functools
+import math
+import signal
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.syntax import Syntax
+
+from docrl_jax import checkpoint
+from docrl_jax.config import Config, ConfigError, load_config, to_yaml
+from docrl_jax.policy import RunDirError
+from docrl_jax.run_dir import CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, TB_DIR, read_config
+from docrl_jax.train import make_trainer
+
+EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
+_EVAL_SALT = 0x5EA1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m docrl_jax.train", description=__doc__.split("\n\n")[0])
+    p.add_argument("--config", help="packaged config name (td3_lstm, sac_lstm, ddpg_mlp, sac_mlp) or a YAML path")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one config value (YAML scalar); repeatable")
+    p.add_argument("--run-dir", help="output directory (default runs/<name>-<UTC time>)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its latest checkpoint")
+    p.add_argument("--no-progress", action="store_true", help="print one line per chunk instead of a progress bar")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    launch = time.time()
+    args = build_parser().parse_args(argv)
+    console = Console()
+    try:
+        config, run_dir = _resolve(args)
+    except (ConfigError, RunDirError) as e:
+        console.print(f"[bold red]error:[/] {e}")
+        return EXIT_CONFIG
+    console.print(f"[bold]run directory:[/] {run_dir}")
+    console.print(Syntax(to_yaml(config), "yaml", theme="ansi_dark"))
+    return run(config, run_dir, resume=args.resume, console=console, show_progress=not args.no_progress,
+               launch_time=launch)
+
+
+def _resolve(args) -> tuple[Config, Path]:
+    if args.resume:
+        if not args.run_dir:
+            raise RunDirError("--resume needs --run-dir DIR")
+        run_dir = Path(args.run_dir)
+        read_config(run_dir)  # clear errors for a missing dir or config
+        if checkpoint.latest_step(run_dir) is None:
+            raise RunDirError(f"{str(run_dir)!r} has no checkpoint to resume from")
+        return load_config(run_dir / CONFIG_FILE, args.set), run_dir
+    if not args.config:
+        raise ConfigError("--config is required (a packaged name such as td3_lstm, or a YAML path)")
+    config = load_config(args.config, args.set)
+    run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.name}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
+    if checkpoint.latest_step(run_dir) is not None:
+        raise RunDirError(f"{str(run_dir)!r} already holds a run; pass --resume to continue it or choose another --run-dir")
+    return config, run_dir
+
+
+class _Interrupt:
+    """First Ctrl-C: finish the running chunk, checkpoint, stop. Second: stop at once."""
+
+    def __init__(self):
+        self.requested = False
+        self._old = None
+
+    def __enter__(self):
+        try:
+            self._old = signal.signal(signal.SIGINT, self._handle)
+        except ValueError:  # not the main thread (e.g. some test runners)
+            self._old = None
+        return self
+
+    def _handle(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+
+
+def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
+    """Keys of the evaluation at `env_steps`: a function of seed and step only, so a resumed run
+    evaluates on exactly the episodes an uninterrupted one would."""
+    return jnp.stack([jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(s), _EVAL_SALT), env_steps)
+                      for s in seeds])
+
+
+def programs(config: Config):
+    """(init, chunk, evaluate), jitted and vmapped over seeds; the chunk donates its runner state."""
+    # The programs do not depend on the name, the seed values (keys are arguments), the run length
+    # (a runner-state field) or when to evaluate and checkpoint, so one compilation serves them all;
+    # memoised so a resume in the same process compiles nothing.
+    train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
+                                keep_checkpoints=1)
+    return _programs(dataclasses.replace(config, name="run", train=train))
+
+
+@functools.lru_cache(maxsize=8)
+def _programs(config: Config):
+    trainer = make_trainer(config)
+    return (jax.jit(jax.vmap(trainer.init_total, (0, None))), jax.jit(jax.vmap(trainer.chunk), donate_argnums=0),
+            jax.jit(jax.vmap(trainer.evaluate)))
+
+
+def run(config: Config, run_dir: str | Path, resume: bool = False, console: Console | None = None,
+        show_progress: bool = True, launch_time: float | None = None, stop_after_chunks: int | None = None) -> int:
+    """Trains (or resumes) `config` into `run_dir`. `stop_after_chunks` acts like a Ctrl-C after that
+    many chunks of this call (tests use it to interrupt a run)."""
+    from tensorboardX import SummaryWriter
+
+    launch_time = time.time() if launch_time is None else launch_time
+    console = console or Console(quiet=not show_progress)
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / CONFIG_FILE).write_text(to_yaml(config))
+    t_cfg = config.train
+    trainer = make_trainer(config)
+    seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    init, chunk, evaluate = programs(config)
+    mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
+    total = jnp.asarray(trainer.total_env_steps, jnp.int32)
+    metrics_path = run_dir / METRICS_FILE
+
+    if resume:
+        step = mngr.latest_step()
+        try:
+            state, _, meta = checkpoint.restore(mngr, step, abstract_state=jax.eval_shape(init, keys, total))
+        except Exception as e:
+            console.print(f"[bold red]error:[/] cannot restore checkpoint {step} of {run_dir}: {type(e).__name__}: {e}")
+            return EXIT_CONFIG
+        done_chunks, wall_before, pending = meta["chunk"], meta["wall_time_s"], meta["pending"]
+        # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
+        state = state.replace(total_steps=jnp.full_like(state.total_steps, trainer.total_env_steps))
+        _truncate_csv(metrics_path, step)
+        console.print(f"resumed from env step {step} (chunk {done_chunks}/{trainer.num_chunks})")
+    else:
+        state = init(keys, total)
+        done_chunks, wall_before, pending = 0, 0.0, _empty_pending(len(seeds))
+        with open(metrics_path, "w", newline="") as fh:
+            csv.writer(fh).writerow(METRIC_COLUMNS)
+    env_steps = done_chunks * trainer.steps_per_chunk
+    writer = SummaryWriter(str(run_dir / TB_DIR), purge_step=env_steps if resume else None)
+
+    def wall() -> float:
+        return wall_before + time.time() - launch_time
+
+    def save(steps: int):
+        policy = state.agent.actor
+        checkpoint.save(mngr, steps, state, policy,
+                        {"env_steps": steps, "chunk": done_chunks, "wall_time_s": wall(), "pending": pending,
+                         "name": config.name})
+
+    def do_eval(steps: int):
+        nonlocal pending
+        ev = jax.device_get(evaluate(state.agent.actor, eval_keys(seeds, steps)))
+        rows = []
+        for i, seed in enumerate(seeds):
+            p = {k: v[i] for k, v in pending.items()}
+            eps = p["episodes"]
+            learn = p["learn_iters"]
+            row = {"env_steps": steps, "wall_time_s": round(wall(), 3), "seed": seed,
+                   "success_rate": float(ev["success_rate"][i]), "episode_return": float(ev["episode_return"][i]),
+                   "success_air_to_water": float(ev.get("success_air_to_water", [math.nan] * len(seeds))[i]),
+                   "success_water_to_air": float(ev.get("success_water_to_air", [math.nan] * len(seeds))[i]),
+                   "train_episode_return": p["return_sum"] / eps if eps else math.nan,
+                   "train_success_rate": p["success_sum"] / eps if eps else math.nan,
+                   "train_episodes": int(eps),
+                   "critic_loss": p["critic_loss"] / learn if learn else math.nan,
+                   "actor_loss": p["actor_loss"] / learn if learn else math.nan,
+                   "alpha": p["alpha"] / learn if learn and config.agent.algo == "sac" else math.nan,
+                   "q": p["q"] / learn if learn else math.nan,
+                   "policy_freq": p["policy_freq"] / learn if learn else math.nan,
+                   "grad_updates": int(state.agent.updates[i])}
+            rows.append(row)
+        with open(metrics_path, "a", newline="") as fh:
+            w = csv.DictWriter(fh, METRIC_COLUMNS)
+            for row in rows:
+                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+        for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air"):
+            if k in ev:
+                writer.add_scalar(f"eval/{k}", float(np.mean(ev[k])), steps)
+        pending = _empty_pending(len(seeds))
+        return rows
+
+    last_eval = {}
+    if not resume:
+        last_eval = do_eval(0)[0]
+
+    columns = [TextColumn("[bold]{task.description}"), BarColumn(),
+               TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"), TextColumn("{task.fields[sps]}"),
+               TimeRemainingColumn(), TextColumn("{task.fields[stats]}")]
+    status = EXIT_OK
+    chunks_this_call = 0
+    with _Interrupt() as interrupt, Progress(*columns, console=console, disable=not show_progress) as progress:
+        task = progress.add_task(config.name, total=trainer.total_env_steps, completed=env_steps, sps="", stats="")
+        while done_chunks < trainer.num_chunks:
+            t0 = time.time()
+            state, m = chunk(state)
+            m = jax.device_get(m)
+            dt = time.time() - t0
+            bad = np.asarray(m["nonfinite_iter"])
+            if np.any(bad >= 0):
+                i = int(np.argmax(bad >= 0))
+                at = env_steps + (int(bad[i]) + 1) * config.env.num_envs
+                last = mngr.latest_step()
+                console.print(f"[bold red]non-finite loss[/] at env step {at} (seed {seeds[i]}); training stopped. "
+                              f"Last good checkpoint: {'none' if last is None else f'env step {last}'} in "
+                              f"{run_dir / checkpoint.CHECKPOINT_DIR}")
+                status = EXIT_NONFINITE
+                break
+            done_chunks += 1
+            chunks_this_call += 1
+            prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
+            _accumulate(pending, m)
+            _log_chunk(writer, m, env_steps, trainer.steps_per_chunk * len(seeds) / dt)
+            final = done_chunks == trainer.num_chunks
+            if final or env_steps // t_cfg.eval_every > prev // t_cfg.eval_every:
+                last_eval = do_eval(env_steps)[0]
+            stop = interrupt.requested or (stop_after_chunks is not None and chunks_this_call >= stop_after_chunks)
+            if final or stop or env_steps // t_cfg.checkpoint_every > prev // t_cfg.checkpoint_every:
+                save(env_steps)
+            progress.update(task, completed=env_steps,
+                            sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s",
+                            stats=_stats_line(m, last_eval))
+            if not show_progress:
+                console.print(f"{env_steps:,} steps  {_stats_line(m, last_eval)}")
+            if stop and not final:
+                console.print(f"interrupted: checkpoint saved at env step {env_steps}; resume with "
+                              f"--run-dir {run_dir} --resume")
+                status = EXIT_INTERRUPTED
+                break
+    writer.close()
+    mngr.close()
+    if status == EXIT_OK:
+        console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")
+    return status
+
+
+def _empty_pending(num_seeds: int) -> dict:
+    keys = ("episodes", "return_sum", "success_sum", "learn_iters", "critic_loss", "actor_loss", "alpha", "q",
+            "policy_freq")
+    return {k: [0.0] * num_seeds for k in keys}
+
+
+def _accumulate(pending: dict, m: dict) -> None:
+    """Adds a chunk's per-seed metrics to the totals since the last evaluation (losses weighted by
+    the chunk's learning iterations). Kept as plain floats so it fits the checkpoint's JSON."""
+    learn = np.asarray(m["learn_iters"], np.float64)
+    for k in pending:
+        if k in ("episodes", "return_sum", "success_sum", "learn_iters"):
+            add = np.asarray(m[k], np.float64)
+        elif k in m:
+            add = np.asarray(m[k], np.float64) * learn
+        else:
+            add = np.zeros_like(learn)
+        pending[k] = [float(a + b) for a, b in zip(pending[k], add)]
+
+
+def _log_chunk(writer, m: dict, env_steps: int, sps: float) -> None:
+    eps = float(np.sum(m["episodes"]))
+    if eps:
+        writer.add_scalar("train/episode_return", float(np.sum(m["return_sum"])) / eps, env_steps)
+        writer.add_scalar("train/success_rate", float(np.sum(m["success_sum"])) / eps, env_steps)
+    for k in ("critic_loss", "actor_loss", "alpha", "alpha_loss", "q", "policy_freq"):
+        if k in m and float(np.sum(m["learn_iters"])):
+            writer.add_scalar(f"train/{k}", float(np.mean(m[k])), env_steps)
+    writer.add_scalar("train/env_steps_per_s", sps, env_steps)
+    writer.add_scalar("train/grad_updates_in_chunk", float(np.mean(m["updates"])), env_steps)
+
+
+def _stats_line(m: dict, last_eval: dict) -> str:
+    eps = float(np.sum(m["episodes"]))
+    ret = f"{float(np.sum(m['return_sum'])) / eps:7.1f}" if eps else "    n/a"
+    parts = [f"return {ret}", f"eval success {last_eval.get('success_rate', math.nan):.2f}",
+             f"critic {float(np.mean(m['critic_loss'])):.3g}", f"actor {float(np.mean(m['actor_loss'])):.3g}"]
+    if "alpha" in m:
+        parts.append(f"alpha {float(np.mean(m['alpha'])):.3g}")
+    return "  ".join(parts)
+
+
+def _truncate_csv(path: Path, env_steps: int) -> None:
+    """Drops rows written after the checkpoint being resumed (they will be written again)."""
+    if not path.is_file():
+        with open(path, "w", newline="") as fh:
+            csv.writer(fh).writerow(METRIC_COLUMNS)
+        return
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, body = rows[0], rows[1:]
+    keep = [r for r in body if r and int(float(r[0])) <= env_steps]
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(keep)

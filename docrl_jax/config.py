@@ -1,0 +1,422 @@
+"""The trainer's configuration: schema, YAML loading, `--set` overrides and validation.
+
+A run is configured by one YAML file with the sections `env`, `agent`, `replay` and `train`
+(see `configs/*.yaml`); every field is declared and documented below, CleanRL style. Loading goes
+
+    YAML file (bare name -> packaged `configs/`, else a path)  ->  `--set section.key=value` overrides
+    ->  type coercion  ->  `validate` (before anything is compiled)  ->  frozen, hashable `Config`
+
+Errors are `ConfigError` (a ValueError) and name the key, the bad value and what is allowed.
+`Config` is hashable so that `make_trainer(config)` can be memoised and reuse compiled programs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import typing
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+
+class ConfigError(ValueError):
+    """An invalid configuration; the message names the key, the value and the valid choices."""
+
+
+def _f(default: Any, doc: str, choices: tuple | None = None) -> Any:
+    return field(default=default, metadata={"doc": doc, "choices": choices})
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    scenario: int = _f(2, "Tank layout: 1 empty, 2 four risers (the paper's training scenario), 3 fifteen obstacles.",
+                       (1, 2, 3))
+    num_envs: int = _f(256, "Environments stepped in parallel (per seed). Each vectorised step adds num_envs "
+                            "transitions; see train.updates_per_step for the update-to-data ratio.")
+    overrides: tuple = _f((), "Not a YAML key: every other key under `env:` is an `EnvParams` field "
+                              "(docrl_jax/envs/params.py), e.g. wind, max_goal_distance, progress_reward_scale.")
+
+    def env_kwargs(self) -> dict[str, Any]:
+        return dict(self.overrides)
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    algo: str = _f("td3", "td3 = DoCRL-D (clipped double-Q, target smoothing, delayed policy); sac = DoCRL-S "
+                          "(tanh-Gaussian actor, learned temperature); ddpg = the paper's 'Det.' row "
+                          "(one critic, no smoothing, no delay).", ("td3", "sac", "ddpg"))
+    actor: str = _f("lstm", "Actor network: lstm (the paper's) or mlp (the 'Det.'/'Sto.' baselines).", ("lstm", "mlp"))
+    actor_hidden: tuple = _f((32,), "lstm: one entry, the LSTM units (orig 32), followed by Linear(3). "
+                                    "mlp: the hidden widths (orig DDPG 512-512, SAC 256-256).")
+    critic_hidden: tuple = _f((512, 512), "Hidden widths of each critic MLP on concat(obs, action) "
+                                          "(orig TD3 512-512, SAC 256-256).")
+    memory: bool = _f(True, "true: the LSTM carry flows from step to step and resets at episode start. "
+                            "false: zero carry on every call, the original's memoryless LSTM "
+                            "(requires replay.seq_len 1 and replay.burn_in 0).")
+    actor_lr: float = _f(1e-3, "Adam learning rate of the actor (paper 1e-3).")
+    critic_lr: float = _f(1e-3, "Adam learning rate of the critics (paper 1e-3).")
+    alpha_lr: float = _f(1e-3, "SAC: Adam learning rate of log(alpha) (paper 1e-3 for all optimisers).")
+    gamma: float = _f(0.99, "Discount (paper 0.99).")
+    tau: float = _f(0.001, "Soft target update rate (paper silent; orig TD3/DDPG 0.001, SAC 0.01).")
+    policy_freq: int = _f(0, "Critic updates per actor (and target) update. 0 = the paper's schedule "
+                             "int(1/(0.5 - t/(3*max_steps))) with t = max_steps * training progress "
+                             "(env steps done / total_env_steps): 2, then 3 from 50%, 4 from 75%, 5 from 90% (6 on the last step). "
+                             "k > 0 = fixed delay k (orig TD3 2, SAC 1).")
+    policy_noise: float = _f(0.2, "TD3 target-policy smoothing: std of the Gaussian noise on a' (paper "
+                                  "silent on the value; TD3 paper 0.2; the original code had it commented out).")
+    noise_clip: float = _f(0.5, "TD3: the smoothing noise is clipped to [-noise_clip, noise_clip] (TD3 paper 0.5).")
+    ou_theta: float = _f(0.15, "TD3/DDPG exploration: Ornstein-Uhlenbeck mean reversion per step (orig 0.15).")
+    ou_sigma: float = _f(0.075, "TD3/DDPG: OU noise scale at the start, in action units [-1, 1] "
+                                "(orig TD3-LSTM 0.075; DDPG 0.71).")
+    ou_sigma_final: float = _f(0.03, "TD3/DDPG: OU scale reached linearly at the end of training "
+                                     "(orig floor 0.03 for TD3-LSTM, 0.2 for DDPG).")
+    target_entropy: float = _f(-3.0, "SAC: target entropy of the temperature loss (orig -3 = -action size).")
+    init_alpha: float = _f(1.0, "SAC: initial temperature (orig log alpha = 0, i.e. 1).")
+
+
+@dataclass(frozen=True)
+class ReplayConfig:
+    buffer_size: int = _f(50_000, "Transitions kept per seed, all envs together (paper silent; orig 50,000). "
+                                  "Each env keeps buffer_size // num_envs steps of its own trajectory.")
+    batch_size: int = _f(256, "Sequences per gradient update (paper minibatch 256). With seq_len 1 this is "
+                              "256 transitions, as in the paper.")
+    seq_len: int = _f(16, "Steps per sampled sequence (burn-in included). 1 = single transitions.")
+    burn_in: int = _f(8, "Leading steps of each sequence that only warm the LSTM up from the stored carry "
+                         "(no gradient, no loss); the loss uses the remaining seq_len - burn_in steps.")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    total_env_steps: int = _f(2_000_000, "Environment steps per seed, all envs together (paper: up to 1500 "
+                                         "episodes of 500 steps = 750k). Rounded up to whole chunks.")
+    seed: int = _f(0, "Seed of the first run; seed index i uses seed + i.")
+    num_seeds: int = _f(1, "Independent seeds trained in one program with vmap.")
+    start_steps: int = _f(10_000, "Env steps (all envs together) of uniform random actions before the actor "
+                                  "acts and updates start (paper names start_steps without a value; orig "
+                                  "waited for 1,024 transitions).")
+    updates_per_step: int = _f(4, "Gradient updates after each vectorised env step (num_envs transitions). "
+                                  "Update-to-data ratio = updates_per_step / num_envs updates per transition "
+                                  "(orig: 1 env, 1 update per step).")
+    log_every: int = _f(20_000, "Env steps per compiled chunk: Python logs, checks losses and may evaluate "
+                                "or checkpoint only between chunks.")
+    eval_every: int = _f(100_000, "Env steps between deterministic evaluations (at the first chunk boundary "
+                                  "at or after each multiple, and at step 0 and at the end).")
+    eval_episodes: int = _f(64, "Evaluation episodes per seed, run in parallel, each until arrival, "
+                                "termination or the step limit, on the training distribution of starts/goals.")
+    eval_paper_pairs: bool = _f(False, "Also evaluate the paper's air-to-water and water-to-air pairs "
+                                       "(eval_episodes each, columns success_air_to_water/_water_to_air).")
+    checkpoint_every: int = _f(200_000, "Env steps between Orbax checkpoints (plus one at the end and on Ctrl-C).")
+    keep_checkpoints: int = _f(3, "Most recent checkpoints kept on disk.")
+
+
+@dataclass(frozen=True)
+class Config:
+    name: str = _f("td3_lstm", "Run name: prefix of the default run directory and the policy's name.")
+    env: EnvConfig = field(default_factory=EnvConfig)
+    agent: AgentConfig = field(default_factory=AgentConfig)
+    replay: ReplayConfig = field(default_factory=ReplayConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+
+
+SECTIONS = {"env": EnvConfig, "agent": AgentConfig, "replay": ReplayConfig, "train": TrainConfig}
+
+
+def field_docs() -> dict[str, str]:
+    """'section.key' -> documentation, for error messages and the README."""
+    docs = {"name": dataclasses.fields(Config)[0].metadata["doc"]}
+    for sec, cls in SECTIONS.items():
+        for f in dataclasses.fields(cls):
+            docs[f"{sec}.{f.name}"] = f.metadata["doc"]
+    return docs
+
+
+# ---------------------------------------------------------------------------------------- loading
+def packaged_configs_dir() -> Path:
+    """The repository's top-level `configs/` (a source checkout), else the installed `docrl_jax.configs`."""
+    source = Path(__file__).resolve().parent.parent / "configs"
+    if source.is_dir():
+        return source
+    return Path(str(resources.files("docrl_jax.configs")))
+
+
+def resolve_config_path(name_or_path: str | os.PathLike) -> Path:
+    """A bare name ('td3_lstm' or 'td3_lstm.yaml') is looked up in the packaged configs; anything
+    containing a path separator, or an existing file, is used as a path."""
+    text = str(name_or_path)
+    path = Path(text)
+    if path.exists() and path.is_file():
+        return path
+    if os.sep in text or "/" in text:
+        raise ConfigError(f"config file {text!r} does not exist")
+    stem = text[:-5] if text.endswith(".yaml") else text
+    packaged = packaged_configs_dir()
+    candidate = packaged / f"{stem}.yaml"
+    if candidate.is_file():
+        return candidate
+    names = sorted(p.stem for p in packaged.glob("*.yaml"))
+    raise ConfigError(f"config {text!r} is neither a file nor a packaged config; packaged configs: {names}")
+
+
+def parse_overrides(items: list[str] | None) -> dict[str, Any]:
+    """['agent.actor_lr=3e-4', 'env.wind=false'] -> {'agent.actor_lr': 0.0003, 'env.wind': False}.
+    Values are YAML scalars (so lists work too: env.z_bounds=[-1.0,4.0])."""
+    out: dict[str, Any] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ConfigError(f"override {item!r}: expected section.key=value")
+        key, text = item.split("=", 1)
+        try:
+            out[key.strip()] = yaml.safe_load(text)
+        except yaml.YAMLError as e:
+            raise ConfigError(f"override {item!r}: value is not valid YAML ({e})") from None
+    return out
+
+
+def load_config(name_or_path: str | os.PathLike, overrides: list[str] | dict[str, Any] | None = None,
+                check_memory: bool = True) -> Config:
+    """Reads a YAML config, applies `--set` overrides, validates; raises ConfigError."""
+    path = resolve_config_path(name_or_path)
+    try:
+        raw = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{path}: not valid YAML ({e})") from None
+    if isinstance(overrides, list):
+        overrides = parse_overrides(overrides)
+    return config_from_dict(raw, overrides or {}, check_memory=check_memory, source=str(path))
+
+
+def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, check_memory: bool = False,
+                     source: str = "config") -> Config:
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{source}: the top level must be a mapping with sections {['name', *SECTIONS]}")
+    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items()}
+    for key, value in (overrides or {}).items():
+        parts = key.split(".")
+        if len(parts) == 1 and parts[0] == "name":
+            raw["name"] = value
+            continue
+        if len(parts) != 2 or parts[0] not in SECTIONS:
+            raise ConfigError(f"override {key!r}: expected section.key with section one of {list(SECTIONS)}")
+        section = raw.setdefault(parts[0], {})
+        if not isinstance(section, dict):
+            raise ConfigError(f"{source}: section {parts[0]!r} must be a mapping")
+        section[parts[1]] = value
+    unknown = sorted(set(raw) - {"name", *SECTIONS})
+    if unknown:
+        raise ConfigError(f"unknown top-level key(s) {unknown}; valid keys: {['name', *SECTIONS]}")
+    name = _coerce("name", raw.get("name", Config.name), str, None)
+    built = {}
+    for sec, cls in SECTIONS.items():
+        values = raw.get(sec) or {}
+        if not isinstance(values, dict):
+            raise ConfigError(f"section {sec!r} must be a mapping, got {values!r}")
+        built[sec] = _build_section(sec, cls, values)
+    config = Config(name=name, **built)
+    validate(config)
+    if check_memory:
+        check_replay_memory(config)
+    return config
+
+
+def _build_section(sec: str, cls, values: dict) -> Any:
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.name != "overrides"}
+    hints = typing.get_type_hints(cls)
+    kwargs, extra = {}, {}
+    for key, value in values.items():
+        if key in fields:
+            kwargs[key] = _coerce(f"{sec}.{key}", value, hints[key], fields[key].metadata["choices"])
+        else:
+            extra[key] = value
+    if extra and sec != "env":
+        raise ConfigError(f"unknown key(s) {sorted(f'{sec}.{k}' for k in extra)}; valid keys in {sec!r}: "
+                          f"{sorted(fields)}")
+    if sec == "env":
+        from docrl_jax.envs import param_docs
+        valid_env = param_docs()
+        bad = sorted(set(extra) - set(valid_env))
+        if bad:
+            raise ConfigError(f"unknown key(s) {[f'env.{k}' for k in bad]}; valid keys in 'env': "
+                              f"{sorted(fields)} plus the EnvParams fields {sorted(set(valid_env) - {'scenario'})}")
+        kwargs["overrides"] = tuple(sorted((k, _freeze(v)) for k, v in extra.items()))
+    return cls(**kwargs)
+
+
+def _freeze(v: Any) -> Any:
+    return tuple(_freeze(x) for x in v) if isinstance(v, (list, tuple)) else v
+
+
+def _coerce(key: str, value: Any, typ: Any, choices: tuple | None) -> Any:
+    """Checks one value against its declared type; ints are accepted for floats, and strings such as
+    '3e-4' (which YAML 1.1 reads as text) are accepted for floats when they parse as numbers."""
+    if typ is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{key}={value!r}: must be a bool (true or false)")
+    elif typ is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
+                value = int(value)  # 1e6 written as 1.0e+6
+            else:
+                raise ConfigError(f"{key}={value!r}: must be an integer")
+    elif typ is float:
+        if isinstance(value, str):
+            try:
+                value = float(value)
+            except ValueError:
+                raise ConfigError(f"{key}={value!r}: must be a number") from None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{key}={value!r}: must be a number")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"{key}={value!r}: must be finite")
+    elif typ is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{key}={value!r}: must be a string")
+    elif typ is tuple:
+        if isinstance(value, int) and not isinstance(value, bool):
+            value = [value]
+        if not isinstance(value, (list, tuple)) or not value or not all(
+                isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value):
+            raise ConfigError(f"{key}={value!r}: must be a non-empty list of positive integers, e.g. [256, 256]")
+        value = tuple(value)
+    if choices is not None and value not in choices:
+        raise ConfigError(f"{key}={value!r}: valid choices are {list(choices)}")
+    return value
+
+
+# ---------------------------------------------------------------------------------------- validation
+def _bad(key: str, value: Any, why: str) -> None:
+    raise ConfigError(f"{key}={value!r}: {why}")
+
+
+def validate(c: Config) -> Config:
+    """Rejects impossible combinations before anything is compiled."""
+    from docrl_jax.envs import make_params
+    e, a, r, t = c.env, c.agent, c.replay, c.train
+    try:
+        make_params(e.scenario, **_env_kwargs_for_params(e))
+    except ValueError as err:
+        raise ConfigError(f"env: {err}") from None
+    if not c.name or any(ch in c.name for ch in "/\\"):
+        _bad("name", c.name, "must be a non-empty name without path separators")
+    for key, value, lo in [("env.num_envs", e.num_envs, 1), ("replay.buffer_size", r.buffer_size, 1),
+                           ("replay.batch_size", r.batch_size, 1), ("replay.seq_len", r.seq_len, 1),
+                           ("train.total_env_steps", t.total_env_steps, 1), ("train.num_seeds", t.num_seeds, 1),
+                           ("train.updates_per_step", t.updates_per_step, 0), ("train.log_every", t.log_every, 1),
+                           ("train.eval_every", t.eval_every, 1), ("train.eval_episodes", t.eval_episodes, 1),
+                           ("train.checkpoint_every", t.checkpoint_every, 1), ("train.start_steps", t.start_steps, 0),
+                           ("train.keep_checkpoints", t.keep_checkpoints, 1), ("agent.policy_freq", a.policy_freq, 0),
+                           ("replay.burn_in", r.burn_in, 0)]:
+        if value < lo:
+            _bad(key, value, f"must be >= {lo}")
+    if not 0 <= t.seed < 2**31 - t.num_seeds:
+        _bad("train.seed", t.seed, "must be in [0, 2**31 - num_seeds)")
+    if r.burn_in >= r.seq_len:
+        _bad("replay.burn_in", r.burn_in, f"must be < replay.seq_len={r.seq_len} (at least one trained step)")
+    if a.actor == "lstm" and len(a.actor_hidden) != 1:
+        _bad("agent.actor_hidden", list(a.actor_hidden), "an lstm actor takes one entry, the LSTM units, e.g. [32]")
+    recurrent = a.actor == "lstm" and a.memory
+    if not recurrent and (r.seq_len != 1 or r.burn_in != 0):
+        why = "an mlp actor" if a.actor == "mlp" else "agent.memory false (the memoryless LSTM)"
+        _bad("replay.seq_len/burn_in", (r.seq_len, r.burn_in), f"{why} needs seq_len 1 and burn_in 0")
+    capacity = r.buffer_size // e.num_envs
+    if capacity < r.seq_len + 1:
+        _bad("replay.buffer_size", r.buffer_size,
+             f"gives {capacity} steps per env (buffer_size // num_envs with num_envs={e.num_envs}); "
+             f"needs at least seq_len + 1 = {r.seq_len + 1}, i.e. buffer_size >= {(r.seq_len + 1) * e.num_envs}")
+    for key, value in [("agent.actor_lr", a.actor_lr), ("agent.critic_lr", a.critic_lr), ("agent.alpha_lr", a.alpha_lr),
+                       ("agent.policy_noise", a.policy_noise), ("agent.noise_clip", a.noise_clip),
+                       ("agent.ou_theta", a.ou_theta), ("agent.ou_sigma", a.ou_sigma),
+                       ("agent.ou_sigma_final", a.ou_sigma_final)]:
+        if value < 0:
+            _bad(key, value, "must be >= 0 (0 disables it; a learning rate of 0 freezes learning)")
+    if not 0.0 <= a.gamma < 1.0:
+        _bad("agent.gamma", a.gamma, "must be in [0, 1)")
+    if not 0.0 < a.tau <= 1.0:
+        _bad("agent.tau", a.tau, "must be in (0, 1]")
+    if a.ou_theta > 1.0:
+        _bad("agent.ou_theta", a.ou_theta, "must be in [0, 1] (mean reversion per step)")
+    if a.init_alpha <= 0:
+        _bad("agent.init_alpha", a.init_alpha, "must be > 0")
+    if a.algo == "ddpg":
+        if a.policy_noise != 0.0:
+            _bad("agent.policy_noise", a.policy_noise, "ddpg has no target-policy smoothing; set 0 or use algo td3")
+        if a.policy_freq != 1:
+            _bad("agent.policy_freq", a.policy_freq, "ddpg updates the actor every step; set 1 or use algo td3")
+    return c
+
+
+def _env_kwargs_for_params(e: EnvConfig) -> dict[str, Any]:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in e.overrides}
+
+
+def env_kwargs(c: Config) -> dict[str, Any]:
+    """Keyword overrides for `docrl_jax.envs.make(scenario, **kwargs)`."""
+    return _env_kwargs_for_params(c.env)
+
+
+# ---------------------------------------------------------------------------------------- memory
+def carry_size(c: Config) -> int:
+    """Floats in one actor carry: (c, h) of the LSTM, or a 1-float placeholder for an MLP actor."""
+    return 2 * c.agent.actor_hidden[0] if c.agent.actor == "lstm" else 1
+
+
+def replay_bytes(c: Config) -> int:
+    """Bytes of the replay buffers of all seeds: per step obs, next obs, action, reward and carry in
+    float32, plus three bool flags (terminated, truncated, episode start)."""
+    from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
+    per_step = 4 * (2 * OBS_SIZE + ACTION_SIZE + 1 + carry_size(c)) + 3
+    capacity = c.replay.buffer_size // c.env.num_envs
+    return c.train.num_seeds * c.env.num_envs * capacity * per_step
+
+
+def available_device_bytes() -> tuple[int | None, str]:
+    """Free memory of the default device: GPU/TPU from `memory_stats()`, CPU from MemAvailable."""
+    import jax
+    dev = jax.devices()[0]
+    if dev.platform != "cpu":
+        stats = dev.memory_stats() or {}
+        if "bytes_limit" in stats:
+            return int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0)), f"{dev.device_kind} memory"
+        return None, str(dev)
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024, "available host RAM"
+    except OSError:
+        pass
+    return None, "host RAM"
+
+
+def check_replay_memory(c: Config) -> None:
+    need = replay_bytes(c)
+    free, what = available_device_bytes()
+    if free is not None and need > free:
+        raise ConfigError(
+            f"replay buffers need {need / 2**30:.2f} GiB (num_seeds={c.train.num_seeds} x buffer_size="
+            f"{c.replay.buffer_size} steps x {need // max(1, c.train.num_seeds * c.replay.buffer_size)} bytes), "
+            f"more than the {free / 2**30:.2f} GiB of {what}; lower replay.buffer_size or train.num_seeds")
+
+
+# ---------------------------------------------------------------------------------------- output
+def to_dict(c: Config) -> dict[str, Any]:
+    """Plain YAML-ready dict (env overrides flattened back into `env:`)."""
+    def plain(v):
+        return [plain(x) for x in v] if isinstance(v, tuple) else v
+    out: dict[str, Any] = {"name": c.name}
+    for sec in SECTIONS:
+        obj = getattr(c, sec)
+        d = {f.name: plain(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.name != "overrides"}
+        if sec == "env":
+            d.update({k: plain(v) for k, v in c.env.overrides})
+        out[sec] = d
+    return out
+
+
+def to_yaml(c: Config) -> str:
+    return yaml.safe_dump(to_dict(c), sort_keys=False)

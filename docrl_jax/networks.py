@@ -1,0 +1,115 @@
+"""Flax networks of the paper's agents (section "Network Structure", orig code section 5).
+
+Every actor has one calling convention, so the trainer treats LSTM and MLP actors alike:
+
+    carry, out = actor.apply(params, carry, obs)        # obs [..., 26]; carry from `init_carry`
+
+`out` is the action in [-1, 1]^3 for a deterministic actor, or `(mean, log_std)` of the
+pre-tanh Gaussian for a stochastic (SAC) actor. An MLP actor passes its 1-float placeholder carry
+through unchanged. Critics return one Q-value per critic head, stacked on axis 0.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+from docrl_jax.envs import ACTION_SIZE
+
+LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0  # orig SAC clamp
+
+
+class _Head(nn.Module):
+    stochastic: bool
+
+    @nn.compact
+    def __call__(self, h):
+        if not self.stochastic:
+            return jnp.tanh(nn.Dense(ACTION_SIZE, name="out")(h))
+        mean = nn.Dense(ACTION_SIZE, name="mean")(h)
+        log_std = jnp.clip(nn.Dense(ACTION_SIZE, name="log_std")(h), LOG_STD_MIN, LOG_STD_MAX)
+        return mean, log_std
+
+
+class LSTMActor(nn.Module):
+    """LSTM(26 -> units) -> Linear(units -> 3): tanh output (TD3) or Gaussian head (SAC)."""
+    units: int
+    stochastic: bool = False
+
+    @nn.compact
+    def __call__(self, carry, obs):
+        carry, h = nn.OptimizedLSTMCell(self.units, name="lstm")(carry, obs)
+        return carry, _Head(self.stochastic, name="head")(h)
+
+    def init_carry(self, batch_shape=()):
+        zeros = jnp.zeros((*batch_shape, self.units), jnp.float32)
+        return (zeros, zeros)  # (c, h), flax's LSTM carry order
+
+
+class MLPActor(nn.Module):
+    """The baselines' actor: hidden ReLU layers -> tanh output or Gaussian head."""
+    hidden: Sequence[int]
+    stochastic: bool = False
+
+    @nn.compact
+    def __call__(self, carry, obs):
+        h = obs
+        for i, width in enumerate(self.hidden):
+            h = nn.relu(nn.Dense(width, name=f"dense_{i}")(h))
+        return carry, _Head(self.stochastic, name="head")(h)
+
+    def init_carry(self, batch_shape=()):
+        return (jnp.zeros((*batch_shape, 1), jnp.float32),)  # placeholder: keeps one carry layout
+
+
+class Critic(nn.Module):
+    """`num` independent Q-networks on concat(obs, action); returns Q of shape [num, ...]."""
+    hidden: Sequence[int]
+    num: int = 2
+
+    @nn.compact
+    def __call__(self, obs, action):
+        x = jnp.concatenate([obs, action], axis=-1)
+        qs = []
+        for k in range(self.num):
+            h = x
+            for i, width in enumerate(self.hidden):
+                h = nn.relu(nn.Dense(width, name=f"q{k}_dense_{i}")(h))
+            qs.append(nn.Dense(1, name=f"q{k}_out")(h)[..., 0])
+        return jnp.stack(qs)
+
+
+def make_actor(kind: str, hidden: Sequence[int], stochastic: bool) -> nn.Module:
+    if kind == "lstm":
+        return LSTMActor(units=hidden[0], stochastic=stochastic)
+    return MLPActor(hidden=tuple(hidden), stochastic=stochastic)
+
+
+def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = True):
+    """Runs the actor over a sequence (time on axis 0): obs_seq [T, ..., 26], reset_seq [T, ...] bool.
+
+    The carry is zeroed *before* a step whose reset flag is set (the first step of an episode), which
+    is exactly what happened while acting; with memory=False it is zeroed before every step (the
+    original's memoryless LSTM). Returns (carries_in [T, ...], outputs [T, ...], final carry), where
+    carries_in[t] is the carry the actor received at step t.
+    """
+    zero = jax.tree.map(jnp.zeros_like, carry)
+
+    def step(c, xs):
+        obs, reset = xs
+        if memory:
+            c = jax.tree.map(lambda z, v: jnp.where(_expand(reset, v), z, v), zero, c)
+        else:
+            c = zero
+        new_c, out = actor.apply(params, c, obs)
+        return new_c, (c, out)
+
+    final, (carries_in, outs) = jax.lax.scan(step, carry, (obs_seq, reset_seq))
+    return carries_in, outs, final
+
+
+def _expand(flag, like):
+    return flag.reshape(flag.shape + (1,) * (like.ndim - flag.ndim))

@@ -1,0 +1,84 @@
+"""A run directory, and reading a trained policy back from it.
+
+    <run_dir>/config.yaml      the resolved config (every key, overrides applied)
+    <run_dir>/metrics.csv      one row per seed per evaluation (see `METRIC_COLUMNS`)
+    <run_dir>/tb/              TensorBoard event files (tensorboardX), training metrics every chunk
+    <run_dir>/checkpoints/<env_steps>/{state,policy,meta}   Orbax (see `docrl_jax.checkpoint`)
+
+`load_policy(run_dir, seed_index)` returns the evaluation contract's `Policy` (docrl_jax.policy)
+for a finished or interrupted run.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+from docrl_jax import checkpoint
+from docrl_jax.config import Config, ConfigError, load_config
+from docrl_jax.policy import Policy, RunDirError
+
+CONFIG_FILE = "config.yaml"
+METRICS_FILE = "metrics.csv"
+TB_DIR = "tb"
+
+# metrics.csv: the first five are the evaluator's contract; the rest may grow.
+METRIC_COLUMNS = ["env_steps", "wall_time_s", "seed", "success_rate", "episode_return",
+                  "success_air_to_water", "success_water_to_air", "train_episode_return", "train_success_rate",
+                  "train_episodes", "critic_loss", "actor_loss", "alpha", "q", "policy_freq", "grad_updates"]
+
+
+def read_config(run_dir: str | Path) -> Config:
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise RunDirError(f"run directory {str(run_dir)!r} does not exist")
+    path = run_dir / CONFIG_FILE
+    if not path.is_file():
+        raise RunDirError(f"{str(run_dir)!r} has no {CONFIG_FILE}; is it a docrl_jax run directory?")
+    try:
+        return load_config(path, check_memory=False)
+    except ConfigError as e:
+        raise RunDirError(f"{path}: incompatible config ({e})") from None
+
+
+def policy_abstract(agent, config: Config):
+    """Shapes of the actor params stacked over seeds, as stored in a checkpoint's `policy` item."""
+    keys = jnp.stack([jax.random.PRNGKey(0)] * config.train.num_seeds)
+    return jax.eval_shape(jax.vmap(agent.init), keys).actor
+
+
+def load_policy(run_dir: str | Path, seed_index: int = 0) -> Policy:
+    """The deterministic policy of seed `seed_index` from the latest checkpoint of `run_dir`.
+    Raises RunDirError for a missing directory, config or checkpoint, a corrupt checkpoint, an
+    incompatible config or a seed index out of range."""
+    from docrl_jax.algorithms import make_agent
+
+    config = read_config(run_dir)
+    if not 0 <= seed_index < config.train.num_seeds:
+        raise RunDirError(f"seed_index={seed_index}: the run has num_seeds={config.train.num_seeds} "
+                          f"(valid indices 0..{config.train.num_seeds - 1})")
+    step = checkpoint.latest_step(run_dir)
+    if step is None:
+        raise RunDirError(f"{str(run_dir)!r} has no checkpoint under {checkpoint.CHECKPOINT_DIR}/")
+    agent = make_agent(config)
+    try:
+        _, stacked, _ = checkpoint.restore(checkpoint.manager(run_dir), step,
+                                           abstract_policy=policy_abstract(agent, config))
+    except Exception as e:  # orbax raises many types for unreadable data; all mean the same here
+        raise RunDirError(f"checkpoint {step} in {str(run_dir)!r} is corrupt or does not match config.yaml: "
+                          f"{type(e).__name__}: {e}") from None
+    params = jax.tree.map(lambda x: x[seed_index], stacked)
+    memory = config.agent.actor == "lstm" and config.agent.memory
+
+    def init_carry():
+        return agent.actor.init_carry(())
+
+    def act(params, carry, obs, info, key):
+        """Deterministic action (TD3/DDPG: actor output; SAC: tanh(mean)); info and key unused."""
+        if not memory:
+            carry = init_carry()
+        return agent.act(params, carry, obs)
+
+    return Policy(name=config.name, params=params, init_carry=init_carry, act=act)

@@ -1,0 +1,55 @@
+"""Shared by the trainer tests: one easy configuration and runs of it, built once per process.
+
+Every trainer test uses the same configuration (`easy_config`, varied only in fields that do not
+change the compiled programs: run length, seeds, when to evaluate/checkpoint), so the MJX-heavy
+programs compile once (about a minute on 2 CPU cores) and each run then costs seconds.
+The task is easy on purpose: empty tank, goals 1-2 m away in air, dense progress shaping, no wind,
+100-step episodes.
+"""
+
+from __future__ import annotations
+
+import functools
+import tempfile
+from pathlib import Path
+
+from docrl_jax.config import config_from_dict
+
+EASY = {
+    "name": "easy",
+    "env": {"scenario": 1, "num_envs": 16, "wind": False, "max_goal_distance": 2.0, "progress_reward_scale": 1.0,
+            "max_episode_steps": 100, "goal_water_fraction": 0.0, "start_water_fraction": 0.0},
+    "agent": {"algo": "td3", "actor": "lstm", "actor_hidden": [32], "critic_hidden": [64, 64], "tau": 0.01},
+    "replay": {"buffer_size": 32000, "batch_size": 64, "seq_len": 4, "burn_in": 2},
+    "train": {"total_env_steps": 16000, "start_steps": 2000, "updates_per_step": 2, "log_every": 4000,
+              "eval_every": 8000, "eval_episodes": 64, "checkpoint_every": 8000},
+}
+
+
+def easy_config(**overrides):
+    """EASY with overrides given as section__key=value (e.g. train__seed=1)."""
+    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in EASY.items()}
+    for key, value in overrides.items():
+        sec, name = key.split("__")
+        raw[sec][name] = value
+    return config_from_dict(raw)
+
+
+_TMP = Path(tempfile.mkdtemp(prefix="docrl_trainer_tests_"))
+
+
+@functools.lru_cache(maxsize=None)
+def finished_run(**overrides) -> Path:
+    """Run directory of an uninterrupted CLI run of easy_config(**overrides)."""
+    from docrl_jax.cli import run
+    name = "run_" + "_".join(f"{k}-{v}" for k, v in sorted(overrides.items())) if overrides else "run_default"
+    run_dir = _TMP / name
+    status = run(easy_config(**overrides), run_dir, show_progress=False)
+    assert status == 0, status
+    return run_dir
+
+
+def tmp_dir(name: str) -> Path:
+    path = _TMP / name
+    path.mkdir(parents=True, exist_ok=True)
+    return path

@@ -1,0 +1,106 @@
+"""Config loading and validation: errors come before any compile and name key, value and choices."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from docrl_jax import config as cfg
+from docrl_jax.config import ConfigError, config_from_dict, load_config, packaged_configs_dir, to_yaml
+
+PACKAGED = ["td3_lstm", "sac_lstm", "ddpg_mlp", "sac_mlp"]
+
+
+@pytest.mark.parametrize("name", PACKAGED)
+def test_packaged_configs_load_with_the_contract_keys(name):
+    c = load_config(name)
+    d = cfg.to_dict(c)
+    for sec, key in [("env", "scenario"), ("env", "num_envs"), ("train", "total_env_steps"), ("train", "seed"),
+                     ("train", "num_seeds"), ("train", "eval_every"), ("train", "checkpoint_every")]:
+        assert key in d[sec]
+    assert c.name == name
+    assert c.agent.actor_lr == c.agent.critic_lr == 1e-3 and c.replay.batch_size == 256 and c.agent.gamma == 0.99
+
+
+def test_paper_and_original_sizes():
+    td3, sac, ddpg, sac_mlp = (load_config(n) for n in PACKAGED)
+    assert td3.agent.actor_hidden == (32,) and td3.agent.critic_hidden == (512, 512)
+    assert sac.agent.critic_hidden == (256, 256) and sac.agent.algo == "sac"
+    assert ddpg.agent.actor_hidden == (512, 512) and ddpg.agent.algo == "ddpg"
+    assert sac_mlp.agent.actor_hidden == (256, 256) and sac_mlp.agent.actor == "mlp"
+
+
+def test_bare_name_and_path_resolve_to_the_same_config(tmp_path):
+    path = packaged_configs_dir() / "td3_lstm.yaml"
+    assert load_config("td3_lstm") == load_config("td3_lstm.yaml") == load_config(str(path))
+    copy = tmp_path / "mine.yaml"
+    copy.write_text(path.read_text())
+    assert load_config(str(copy)) == load_config("td3_lstm")
+    with pytest.raises(ConfigError, match="does not exist"):
+        load_config(str(tmp_path / "missing.yaml"))
+    with pytest.raises(ConfigError, match=r"packaged configs: \['ddpg_mlp', 'sac_lstm', 'sac_mlp', 'td3_lstm'\]"):
+        load_config("td4_lstm")
+
+
+def test_unknown_keys_list_the_valid_ones():
+    with pytest.raises(ConfigError, match=r"unknown key\(s\) \['agent.learning_rate'\].*actor_lr"):
+        load_config("td3_lstm", ["agent.learning_rate=0.1"])
+    with pytest.raises(ConfigError, match=r"env.windy.*num_envs.*max_goal_distance"):
+        load_config("td3_lstm", ["env.windy=false"])
+    with pytest.raises(ConfigError, match="valid keys"):
+        config_from_dict({"trainer": {}})
+    with pytest.raises(ConfigError, match="expected section.key"):
+        load_config("td3_lstm", ["lr=0.1"])
+
+
+@pytest.mark.parametrize("override, message", [
+    ("agent.actor_lr=fast", r"agent.actor_lr='fast': must be a number"),
+    ("env.num_envs=2.5", r"env.num_envs=2.5: must be an integer"),
+    ("agent.memory=maybe", r"agent.memory=.maybe.: must be a bool"),
+    ("agent.critic_hidden=[256, -1]", r"non-empty list of positive integers"),
+    ("env.wind=3", r"wind=3: must be a bool"),
+])
+def test_wrong_types_are_rejected(override, message):
+    with pytest.raises(ConfigError, match=message):
+        load_config("td3_lstm", [override])
+
+
+@pytest.mark.parametrize("overrides, message", [
+    (["agent.algo=ppo"], r"valid choices are \['td3', 'sac', 'ddpg'\]"),
+    (["env.scenario=4"], r"valid choices are \[1, 2, 3\]"),
+    (["replay.burn_in=16"], r"must be < replay.seq_len=16"),
+    (["agent.gamma=1.0"], r"must be in \[0, 1\)"),
+    (["agent.actor=mlp", "agent.actor_hidden=[64]"], r"an mlp actor needs seq_len 1 and burn_in 0"),
+    (["agent.memory=false"], r"memoryless LSTM\) needs seq_len 1"),
+    (["env.num_envs=4096"], r"buffer_size >= 69632"),
+    (["agent.algo=ddpg", "agent.policy_freq=1"], r"ddpg has no target-policy smoothing"),
+    (["env.max_goal_distance=0.5"], r"must exceed min_goal_distance"),
+    (["train.num_seeds=0"], r"train.num_seeds=0: must be >= 1"),
+])
+def test_impossible_values_name_the_problem(overrides, message):
+    with pytest.raises(ConfigError, match=message):
+        load_config("td3_lstm", overrides)
+
+
+def test_overrides_are_yaml_scalars():
+    c = load_config("td3_lstm", ["agent.actor_lr=3e-4", "env.z_bounds=[-1.0, 4.5]", "env.wind=false",
+                                 "agent.memory=false", "replay.seq_len=1", "replay.burn_in=0"])
+    assert c.agent.actor_lr == pytest.approx(3e-4) and isinstance(c.agent.actor_lr, float)
+    assert cfg.env_kwargs(c)["z_bounds"] == [-1.0, 4.5] and cfg.env_kwargs(c)["wind"] is False
+    assert hash(c) == hash(load_config("td3_lstm", ["agent.actor_lr=0.0003", "env.z_bounds=[-1.0, 4.5]",
+                                                    "env.wind=false", "agent.memory=false", "replay.seq_len=1",
+                                                    "replay.burn_in=0"]))
+
+
+def test_resolved_yaml_round_trips():
+    c = load_config("sac_lstm", ["env.max_goal_distance=2.0", "train.num_seeds=3"])
+    assert config_from_dict(yaml.safe_load(to_yaml(c))) == c
+
+
+def test_replay_larger_than_memory_is_rejected_with_its_size(monkeypatch):
+    monkeypatch.setattr(cfg, "available_device_bytes", lambda: (10 * 2**20, "available host RAM"))
+    with pytest.raises(ConfigError, match=r"replay buffers need 0\.02 GiB .* more than the 0\.01 GiB of available host RAM"):
+        load_config("td3_lstm")
+    load_config("td3_lstm", check_memory=False)
+    big = load_config("td3_lstm", ["replay.buffer_size=100000000", "train.num_seeds=8"], check_memory=False)
+    assert cfg.replay_bytes(big) > 100 * 2**30
