@@ -13,37 +13,18 @@ Writes env_throughput.json and env_throughput.md into --out (default benchmarks/
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import os
-import platform
 import statistics
-import subprocess
 import sys
 import time
 
 import jax
-import jax.numpy as jnp
 
 import docrl_jax.envs as envs
 
-
-def gpu_name() -> str:
-    try:
-        out = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True,
-                             text=True, timeout=20)
-        return out.stdout.strip().splitlines()[0] if out.returncode == 0 and out.stdout.strip() else "none"
-    except (OSError, subprocess.TimeoutExpired):
-        return "none"
-
-
-def versions() -> dict:
-    import flax
-    import mujoco
-    from mujoco import mjx  # noqa: F401
-    from importlib.metadata import version
-    return {"python": platform.python_version(), "jax": jax.__version__, "jaxlib": version("jaxlib"),
-            "mujoco": mujoco.__version__, "mujoco-mjx": version("mujoco-mjx"), "flax": flax.__version__}
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import run_meta  # noqa: E402
 
 
 def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str, unroll: int | None = None) -> dict:
@@ -94,9 +75,7 @@ def main(argv=None) -> int:
     if any(n <= 0 for n in args.num_envs) or args.steps <= 0 or args.repeats <= 0:
         ap.error("--num-envs, --steps and --repeats must be positive")
 
-    meta = {"command": " ".join([os.path.basename(sys.executable)] + sys.argv), "gpu": gpu_name(),
-            "device": str(jax.devices()[0]), "date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
-            "versions": versions()}
+    meta = run_meta()
     print(json.dumps(meta), flush=True)
     rows = []
     for variant in args.variants:

@@ -1,0 +1,96 @@
+"""Trainer throughput: env steps/s and gradient updates/s during training, compile time, peak memory.
+
+    python benchmarks/train_throughput.py                                  # td3_lstm, sac_lstm x 256/1,024/4,096
+    python benchmarks/train_throughput.py --configs td3_lstm --num-envs 1024 --set agent.critic_hidden=[256,256]
+
+For each config and num_envs: build the trainer (`docrl_jax.train.make_trainer`), compile one chunk
+(timed separately), run one warm-up chunk (which also fills the buffer past `start_steps` and
+seq_len, so every timed iteration learns), then time `--repeats` chunks and report the median.
+A chunk is `--iters` iterations: every env steps once, then `train.updates_per_step` updates.
+Writes train_throughput.json / .md into --out (default benchmarks/results/).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+
+import jax
+
+from docrl_jax.config import load_config
+from docrl_jax.train import make_trainer
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import run_meta  # noqa: E402
+
+
+def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str]) -> dict:
+    overrides = [f"env.num_envs={num_envs}", f"train.log_every={num_envs * iters}", "train.start_steps=0",
+                 "train.num_seeds=1", *sets]
+    config = load_config(name, overrides)
+    trainer = make_trainer(config)
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    jax.block_until_ready(state)
+    t0 = time.perf_counter()
+    chunk = jax.jit(trainer.chunk, donate_argnums=0).lower(state).compile()
+    compile_s = time.perf_counter() - t0
+    state, m = chunk(state)  # warm-up: fills the buffer so that every later iteration learns
+    jax.block_until_ready(m)
+    times, learn = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        state, m = chunk(state)
+        jax.block_until_ready(m)
+        times.append(time.perf_counter() - t0)
+        learn.append(int(m["learn_iters"]))
+    med = statistics.median(times)
+    stats = jax.devices()[0].memory_stats() or {}
+    upd = config.train.updates_per_step
+    return {"config": name, "algo": config.agent.algo, "num_envs": num_envs, "iters_per_chunk": trainer.iters_per_chunk,
+            "updates_per_step": upd, "batch_size": config.replay.batch_size, "seq_len": config.replay.seq_len,
+            "compile_s": round(compile_s, 2), "chunk_s_median": round(med, 4), "chunk_s_all": [round(t, 4) for t in times],
+            "learning_iters_per_chunk": learn, "env_steps_per_s": round(trainer.steps_per_chunk / med),
+            "grad_updates_per_s": round(trainer.iters_per_chunk * upd / med, 1),
+            "peak_gpu_memory_gib": round(stats.get("peak_bytes_in_use", 0) / 2**30, 3) if stats else None,
+            "overrides": overrides}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--configs", nargs="+", default=["td3_lstm", "sac_lstm"])
+    ap.add_argument("--num-envs", type=int, nargs="+", default=[256, 1024, 4096])
+    ap.add_argument("--iters", type=int, default=50, help="iterations per timed chunk")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--set", action="append", default=[], help="extra config overrides section.key=value")
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
+    args = ap.parse_args(argv)
+    meta = run_meta()
+    print(json.dumps(meta), flush=True)
+    rows = []
+    for name in args.configs:
+        for n in args.num_envs:
+            row = measure(name, n, args.iters, args.repeats, args.set)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "train_throughput.json"), "w") as f:
+        json.dump({**meta, "results": rows}, f, indent=1)
+    lines = [f"# Trainer throughput ({meta['gpu']}, {meta['date']})", "", f"Command: `{meta['command']}`  ",
+             f"Versions: {meta['versions']}", "",
+             "| config | num_envs | updates/iter | compile (s) | env steps/s | grad updates/s | peak GPU mem (GiB) |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['config']} | {r['num_envs']:,} | {r['updates_per_step']} | {r['compile_s']} | "
+                     f"{r['env_steps_per_s']:,} | {r['grad_updates_per_s']:,} | {r['peak_gpu_memory_gib']} |")
+    with open(os.path.join(args.out, "train_throughput.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
