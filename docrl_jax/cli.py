@@ -65,6 +65,9 @@ def _resolve(args) -> tuple[Config, Path]:
     if args.resume:
         if not args.run_dir:
             raise RunDirError("--resume needs --run-dir DIR")
+        if args.config:
+            raise ConfigError("--resume takes the config from the run directory's config.yaml; drop --config "
+                              "(use --set to change e.g. train.total_env_steps)")
         run_dir = Path(args.run_dir)
         read_config(run_dir)  # clear errors for a missing dir or config
         if checkpoint.latest_step(run_dir) is None:

@@ -154,6 +154,7 @@ def test_command_line_refuses_bad_input_before_compiling(tmp_path):
     assert cli.main(["--config", "no_such_config"]) == cli.EXIT_CONFIG
     assert cli.main(["--config", "td3_lstm", "--set", "agent.bogus=1"]) == cli.EXIT_CONFIG
     assert cli.main(["--run-dir", str(tmp_path), "--resume"]) == cli.EXIT_CONFIG
+    assert cli.main(["--config", "td3_lstm", "--run-dir", str(finished_run()), "--resume"]) == cli.EXIT_CONFIG
     assert cli.main(["--config", "td3_lstm", "--run-dir", str(finished_run())]) == cli.EXIT_CONFIG
     out = subprocess.run([sys.executable, "-m", "docrl_jax.train", "--help"], capture_output=True, text=True)
     assert out.returncode == 0 and "--resume" in out.stdout and "--set" in out.stdout
