@@ -10,6 +10,7 @@ Exit codes: 0 done, 2 bad config or run directory, 3 non-finite loss, 130 interr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import dataclasses
 import functools
@@ -21,7 +22,9 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from rich.console import Console
+from rich.console import Console, Group
+from rich.live import Live
+from rich.text import Text
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.syntax import Syntax
 
@@ -80,6 +83,21 @@ def _resolve(args) -> tuple[Config, Path]:
     if checkpoint.latest_step(run_dir) is not None:
         raise RunDirError(f"{str(run_dir)!r} already holds a run; pass --resume to continue it or choose another --run-dir")
     return config, run_dir
+
+
+class _ProgressPanel:
+    """The progress bar with the latest statistics on a line of their own (they do not fit beside it)."""
+
+    def __init__(self, progress: Progress):
+        self.progress, self.line = progress, "waiting for the first chunk (compiling)"
+
+    def __rich__(self):
+        return Group(self.progress.get_renderable(), Text(self.line))
+
+
+@contextlib.contextmanager
+def _nothing():
+    yield
 
 
 class _Interrupt:
@@ -215,13 +233,15 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     if not resume:
         last_eval = do_eval(0)[0]
 
-    columns = [TextColumn("[bold]{task.description}"), BarColumn(),
-               TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"), TextColumn("{task.fields[sps]}"),
-               TimeRemainingColumn(), TextColumn("{task.fields[stats]}")]
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
+                        TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"), TextColumn("{task.fields[sps]}"),
+                        TimeRemainingColumn(), console=console)
+    task = progress.add_task(config.name, total=trainer.total_env_steps, completed=env_steps, sps="")
+    panel = _ProgressPanel(progress)
     status = EXIT_OK
     chunks_this_call = 0
-    with _Interrupt() as interrupt, Progress(*columns, console=console, disable=not show_progress) as progress:
-        task = progress.add_task(config.name, total=trainer.total_env_steps, completed=env_steps, sps="", stats="")
+    with _Interrupt() as interrupt, Live(panel, console=console, refresh_per_second=4,
+                                         transient=False) if show_progress else _nothing():
         while done_chunks < trainer.num_chunks:
             t0 = time.time()
             state, m = chunk(state)
@@ -248,9 +268,8 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
             stop = interrupt.requested or (stop_after_chunks is not None and chunks_this_call >= stop_after_chunks)
             if final or stop or env_steps // t_cfg.checkpoint_every > prev // t_cfg.checkpoint_every:
                 save(env_steps)
-            progress.update(task, completed=env_steps,
-                            sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s",
-                            stats=_stats_line(m, last_eval))
+            progress.update(task, completed=env_steps, sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s")
+            panel.line = _stats_line(m, last_eval)
             if not show_progress:
                 console.print(f"{env_steps:,} steps  {_stats_line(m, last_eval)}")
             if stop and not final:
@@ -299,8 +318,10 @@ def _log_chunk(writer, m: dict, env_steps: int, sps: float) -> None:
 
 def _stats_line(m: dict, last_eval: dict) -> str:
     eps = float(np.sum(m["episodes"]))
-    ret = f"{float(np.sum(m['return_sum'])) / eps:7.1f}" if eps else "    n/a"
-    parts = [f"return {ret}", f"eval success {last_eval.get('success_rate', math.nan):.2f}",
+    ret = f"{float(np.sum(m['return_sum'])) / eps:.1f}" if eps else "n/a"
+    succ = f"{float(np.sum(m['success_sum'])) / eps:.2f}" if eps else "n/a"
+    parts = [f"train return {ret}", f"train success {succ}",
+             f"eval success {last_eval.get('success_rate', math.nan):.2f}",
              f"critic {float(np.mean(m['critic_loss'])):.3g}", f"actor {float(np.mean(m['actor_loss'])):.3g}"]
     if "alpha" in m:
         parts.append(f"alpha {float(np.mean(m['alpha'])):.3g}")
