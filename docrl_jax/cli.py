@@ -144,8 +144,17 @@ def programs(config: Config):
 @functools.lru_cache(maxsize=8)
 def _programs(config: Config):
     trainer = make_trainer(config)
-    return (jax.jit(jax.vmap(trainer.init_total, (0, None))), jax.jit(jax.vmap(trainer.chunk), donate_argnums=0),
-            jax.jit(jax.vmap(trainer.evaluate)))
+    if config.train.num_seeds > 1:
+        return (jax.jit(jax.vmap(trainer.init_total, (0, None))), jax.jit(jax.vmap(trainer.chunk), donate_argnums=0),
+                jax.jit(jax.vmap(trainer.evaluate)))
+    # One seed: run the unbatched program on the seed axis of size 1. Under vmap, lax.cond with a
+    # per-seed predicate becomes a select that computes both branches, so the delayed actor update
+    # and the pre-learning phase would cost a full update on every step.
+    squeeze = functools.partial(jax.tree.map, lambda x: x[0])
+    expand = functools.partial(jax.tree.map, lambda x: x[None])
+    return (jax.jit(lambda keys, total: expand(trainer.init_total(keys[0], total))),
+            jax.jit(lambda state: expand(trainer.chunk(squeeze(state))), donate_argnums=0),
+            jax.jit(lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))))
 
 
 def run(config: Config, run_dir: str | Path, resume: bool = False, console: Console | None = None,
