@@ -240,7 +240,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
 
     last_eval = {}
     if not resume:
-        last_eval = do_eval(0)[0]
+        last_eval = _seed_mean(do_eval(0))
 
     progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
                         TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"), TextColumn("{task.fields[sps]}"),
@@ -273,7 +273,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
             _log_chunk(writer, m, env_steps, trainer.steps_per_chunk * len(seeds) / dt)
             final = done_chunks == trainer.num_chunks
             if final or env_steps // t_cfg.eval_every > prev // t_cfg.eval_every:
-                last_eval = do_eval(env_steps)[0]
+                last_eval = _seed_mean(do_eval(env_steps))
             stop = interrupt.requested or (stop_after_chunks is not None and chunks_this_call >= stop_after_chunks)
             if final or stop or env_steps // t_cfg.checkpoint_every > prev // t_cfg.checkpoint_every:
                 save(env_steps)
@@ -291,6 +291,11 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     if status == EXIT_OK:
         console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")
     return status
+
+
+def _seed_mean(rows: list[dict]) -> dict:
+    """Mean over seeds of an evaluation's rows (for the progress line)."""
+    return {"success_rate": float(np.mean([r["success_rate"] for r in rows]))}
 
 
 def _empty_pending(num_seeds: int) -> dict:
