@@ -185,6 +185,10 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
             console.print(f"[bold red]error:[/] cannot restore checkpoint {step} of {run_dir}: {type(e).__name__}: {e}")
             return EXIT_CONFIG
         done_chunks, wall_before, pending = meta["chunk"], meta["wall_time_s"], meta["pending"]
+        if done_chunks * trainer.steps_per_chunk != meta["env_steps"]:
+            console.print(f"[bold red]error:[/] checkpoint {step} was written with another chunk size; "
+                          f"train.log_every and env.num_envs cannot change on resume")
+            return EXIT_CONFIG
         # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
         state = state.replace(total_steps=jnp.full_like(state.total_steps, trainer.total_env_steps))
         _truncate_csv(metrics_path, step)
