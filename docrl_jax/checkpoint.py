@@ -27,7 +27,10 @@ def _pack(tree: Any) -> dict[str, Any]:
 
 
 def _abstract_packed(abstract_tree: Any) -> dict[str, Any]:
-    return {f"{i:05d}": jax.ShapeDtypeStruct(leaf.shape, leaf.dtype)
+    # An explicit single-device sharding makes Orbax restore onto this machine's device, whatever the
+    # topology the checkpoint was written on (a GPU run evaluated on a CPU, say).
+    sharding = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+    return {f"{i:05d}": jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding)
             for i, leaf in enumerate(jax.tree.leaves(abstract_tree)) if _size(leaf.shape)}
 
 

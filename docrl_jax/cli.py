@@ -10,6 +10,7 @@ Exit codes: 0 done, 2 bad config or run directory, 3 non-finite loss, 130 interr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import dataclasses
 import functools
@@ -21,7 +22,9 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from rich.console import Console
+from rich.console import Console, Group
+from rich.live import Live
+from rich.text import Text
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.syntax import Syntax
 
@@ -82,6 +85,21 @@ def _resolve(args) -> tuple[Config, Path]:
     return config, run_dir
 
 
+class _ProgressPanel:
+    """The progress bar with the latest statistics on a line of their own (they do not fit beside it)."""
+
+    def __init__(self, progress: Progress):
+        self.progress, self.line = progress, "waiting for the first chunk (compiling)"
+
+    def __rich__(self):
+        return Group(self.progress.get_renderable(), Text(self.line))
+
+
+@contextlib.contextmanager
+def _nothing():
+    yield
+
+
 class _Interrupt:
     """First Ctrl-C: finish the running chunk, checkpoint, stop. Second: stop at once."""
 
@@ -126,8 +144,17 @@ def programs(config: Config):
 @functools.lru_cache(maxsize=8)
 def _programs(config: Config):
     trainer = make_trainer(config)
-    return (jax.jit(jax.vmap(trainer.init_total, (0, None))), jax.jit(jax.vmap(trainer.chunk), donate_argnums=0),
-            jax.jit(jax.vmap(trainer.evaluate)))
+    if config.train.num_seeds > 1:
+        return (jax.jit(jax.vmap(trainer.init_total, (0, None))), jax.jit(jax.vmap(trainer.chunk), donate_argnums=0),
+                jax.jit(jax.vmap(trainer.evaluate)))
+    # One seed: run the unbatched program on the seed axis of size 1. Under vmap, lax.cond with a
+    # per-seed predicate becomes a select that computes both branches, so the delayed actor update
+    # and the pre-learning phase would cost a full update on every step.
+    squeeze = functools.partial(jax.tree.map, lambda x: x[0])
+    expand = functools.partial(jax.tree.map, lambda x: x[None])
+    return (jax.jit(lambda keys, total: expand(trainer.init_total(keys[0], total))),
+            jax.jit(lambda state: expand(trainer.chunk(squeeze(state))), donate_argnums=0),
+            jax.jit(lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))))
 
 
 def run(config: Config, run_dir: str | Path, resume: bool = False, console: Console | None = None,
@@ -158,6 +185,10 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
             console.print(f"[bold red]error:[/] cannot restore checkpoint {step} of {run_dir}: {type(e).__name__}: {e}")
             return EXIT_CONFIG
         done_chunks, wall_before, pending = meta["chunk"], meta["wall_time_s"], meta["pending"]
+        if done_chunks * trainer.steps_per_chunk != meta["env_steps"]:
+            console.print(f"[bold red]error:[/] checkpoint {step} was written with another chunk size; "
+                          f"train.log_every and env.num_envs cannot change on resume")
+            return EXIT_CONFIG
         # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
         state = state.replace(total_steps=jnp.full_like(state.total_steps, trainer.total_env_steps))
         _truncate_csv(metrics_path, step)
@@ -213,15 +244,17 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
 
     last_eval = {}
     if not resume:
-        last_eval = do_eval(0)[0]
+        last_eval = _seed_mean(do_eval(0))
 
-    columns = [TextColumn("[bold]{task.description}"), BarColumn(),
-               TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"), TextColumn("{task.fields[sps]}"),
-               TimeRemainingColumn(), TextColumn("{task.fields[stats]}")]
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
+                        TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"), TextColumn("{task.fields[sps]}"),
+                        TimeRemainingColumn(), console=console)
+    task = progress.add_task(config.name, total=trainer.total_env_steps, completed=env_steps, sps="")
+    panel = _ProgressPanel(progress)
     status = EXIT_OK
     chunks_this_call = 0
-    with _Interrupt() as interrupt, Progress(*columns, console=console, disable=not show_progress) as progress:
-        task = progress.add_task(config.name, total=trainer.total_env_steps, completed=env_steps, sps="", stats="")
+    with _Interrupt() as interrupt, Live(panel, console=console, refresh_per_second=4,
+                                         transient=False) if show_progress else _nothing():
         while done_chunks < trainer.num_chunks:
             t0 = time.time()
             state, m = chunk(state)
@@ -244,13 +277,12 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
             _log_chunk(writer, m, env_steps, trainer.steps_per_chunk * len(seeds) / dt)
             final = done_chunks == trainer.num_chunks
             if final or env_steps // t_cfg.eval_every > prev // t_cfg.eval_every:
-                last_eval = do_eval(env_steps)[0]
+                last_eval = _seed_mean(do_eval(env_steps))
             stop = interrupt.requested or (stop_after_chunks is not None and chunks_this_call >= stop_after_chunks)
             if final or stop or env_steps // t_cfg.checkpoint_every > prev // t_cfg.checkpoint_every:
                 save(env_steps)
-            progress.update(task, completed=env_steps,
-                            sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s",
-                            stats=_stats_line(m, last_eval))
+            progress.update(task, completed=env_steps, sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s")
+            panel.line = _stats_line(m, last_eval)
             if not show_progress:
                 console.print(f"{env_steps:,} steps  {_stats_line(m, last_eval)}")
             if stop and not final:
@@ -263,6 +295,11 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     if status == EXIT_OK:
         console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")
     return status
+
+
+def _seed_mean(rows: list[dict]) -> dict:
+    """Mean over seeds of an evaluation's rows (for the progress line)."""
+    return {"success_rate": float(np.mean([r["success_rate"] for r in rows]))}
 
 
 def _empty_pending(num_seeds: int) -> dict:
@@ -299,8 +336,10 @@ def _log_chunk(writer, m: dict, env_steps: int, sps: float) -> None:
 
 def _stats_line(m: dict, last_eval: dict) -> str:
     eps = float(np.sum(m["episodes"]))
-    ret = f"{float(np.sum(m['return_sum'])) / eps:7.1f}" if eps else "    n/a"
-    parts = [f"return {ret}", f"eval success {last_eval.get('success_rate', math.nan):.2f}",
+    ret = f"{float(np.sum(m['return_sum'])) / eps:.1f}" if eps else "n/a"
+    succ = f"{float(np.sum(m['success_sum'])) / eps:.2f}" if eps else "n/a"
+    parts = [f"train return {ret}", f"train success {succ}",
+             f"eval success {last_eval.get('success_rate', math.nan):.2f}",
              f"critic {float(np.mean(m['critic_loss'])):.3g}", f"actor {float(np.mean(m['actor_loss'])):.3g}"]
     if "alpha" in m:
         parts.append(f"alpha {float(np.mean(m['alpha'])):.3g}")

@@ -82,8 +82,8 @@ def make_train(config: Config) -> Callable:
 
 @functools.lru_cache(maxsize=8)
 def make_trainer(config: Config) -> Trainer:
-    """Builds the pure functions of a run. Memoised on the (hashable) config so that repeated calls,
-    e.g. a resume in the same process or tests, reuse the compiled programs."""
+    """Builds the pure functions of a run. Memoised on the (hashable) config: building the env costs
+    a second, and returning the same functions lets callers' jit caches (cli.programs) hit."""
     e, r, t = config.env, config.replay, config.train
     env = envs.make(e.scenario, auto_reset=True, **env_kwargs(config))
     agent = make_agent(config)

@@ -5,7 +5,10 @@ Baseline = the same run with learning disabled. With learning rates 0 the actor 
 (tests/test_algorithms.py::test_learning_rate_zero_freezes_the_networks), so that run's final
 evaluation is the initial actor evaluated on the final evaluation's episodes: computed here
 directly, which needs no second training run and compares on identical episodes.
-Measured on 2 CPU cores (seed 0): success 0.80 after 100k env steps vs 0.02 untrained (64 episodes).
+Measured on 2 CPU cores, 64 evaluation episodes, runs of 160k env steps (about 40 s after a ~45 s
+compile): final success 0.97 / 0.97 / 0.86 for seeds 0 / 1 / 2, untrained 0.02-0.08. Shorter runs
+are fragile: the schedules (policy delay, OU decay) follow training progress, and a 100k-step run
+reached only 0.31 once float rounding changed its trajectory.
 """
 
 from __future__ import annotations
@@ -19,8 +22,8 @@ from _trainer_common import easy_config, finished_run
 from docrl_jax import cli
 from docrl_jax.train import make_trainer
 
-STEPS = 100_000
-MARGIN = 0.3
+STEPS = 160_000
+MARGIN = 0.5
 
 
 def test_td3_lstm_learns_the_easy_task():

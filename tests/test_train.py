@@ -78,7 +78,7 @@ def test_vmapped_seeds_equal_separate_runs():
             np.testing.assert_allclose(v[0], m2[k][i], rtol=1e-4, atol=1e-5, err_msg=k)
         for k in ("episodes", "success_sum", "arrivals", "collisions", "updates", "actor_updates"):
             assert m1[k][0] == m2[k][i], k
-        jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x)[0], np.asarray(y)[i], rtol=1e-3, atol=1e-4),
+        jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x)[0], np.asarray(y)[i], rtol=1e-3, atol=5e-4),
                      s1.agent.actor, s2.agent.actor)
     # The seeds differ from each other.
     assert not np.allclose(np.asarray(jax.tree.leaves(s2.agent.actor)[0][0]),
