@@ -64,8 +64,9 @@ def test_resume_gives_the_same_metrics_as_an_uninterrupted_run():
 def test_vmapped_seeds_equal_separate_runs():
     """Seed i of a vmapped run is the same computation as a separate run of seed i. Bit equality is
     not expected: under vmap XLA batches the matmuls differently, and RL amplifies float32 rounding
-    chaotically over thousands of updates (measured: identical episode counts and losses to 1e-6
-    after one chunk of 1,750 updates; different episodes two chunks later). So one chunk is compared."""
+    chaotically over thousands of updates (measured: identical episode counts, losses within 2.2e-4
+    relative after one chunk of 1,750 updates; different episodes two chunks later). So one chunk is
+    compared: counts exactly, losses and parameters to 1e-3 relative."""
     two = easy_config(train__num_seeds=2, train__seed=3)
     init2, chunk2, _ = cli.programs(two)
     init1, chunk1, _ = cli.programs(easy_config())
@@ -75,7 +76,7 @@ def test_vmapped_seeds_equal_separate_runs():
     for i, seed in enumerate((3, 4)):
         s1, m1 = chunk1(init1(jax.random.PRNGKey(seed)[None], total))
         for k, v in jax.device_get(m1).items():
-            np.testing.assert_allclose(v[0], m2[k][i], rtol=1e-4, atol=1e-5, err_msg=k)
+            np.testing.assert_allclose(v[0], m2[k][i], rtol=1e-3, atol=1e-5, err_msg=k)
         for k in ("episodes", "success_sum", "arrivals", "collisions", "updates", "actor_updates"):
             assert m1[k][0] == m2[k][i], k
         jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x)[0], np.asarray(y)[i], rtol=1e-3, atol=5e-4),
@@ -179,3 +180,13 @@ def test_non_finite_loss_stops_and_keeps_the_last_good_checkpoint(monkeypatch, c
     assert "non-finite loss at env step 4128 (seed 0)" in capsys.readouterr().out
     assert checkpoint.latest_step(d) == 4000
     assert [int(r["env_steps"]) for r in _rows(d)] == [0]
+
+
+def test_load_policy_reads_a_checkpoint_written_on_a_gpu():
+    """The committed H100 run (benchmarks/results/h100/runs/) was saved with a CUDA topology; it must
+    load on this CPU and act."""
+    from pathlib import Path
+    run = Path(__file__).resolve().parent.parent / "benchmarks/results/h100/runs/h100_td3_lstm_4096_shaped"
+    policy = load_policy(run)
+    carry, action = policy.act(policy.params, policy.init_carry(), jnp.zeros(26), {}, jax.random.PRNGKey(0))
+    assert action.shape == (3,) and np.all(np.abs(np.asarray(action)) <= 1.0)
