@@ -64,27 +64,30 @@ def test_resume_gives_the_same_metrics_as_an_uninterrupted_run():
 def test_vmapped_seeds_equal_separate_runs():
     """Seed i of a vmapped run is the same computation as a separate run of seed i. Bit equality is
     not expected: under vmap XLA batches the matmuls differently, and RL amplifies float32 rounding
-    chaotically over thousands of updates (measured: identical episode counts, losses within 2.2e-4
-    relative after one chunk of 1,750 updates; different episodes two chunks later). So one chunk is
-    compared: counts exactly, losses and parameters to 1e-3 relative."""
+    chaotically over thousands of updates (measured after one chunk of 1,750 updates: identical
+    episode counts, losses within 2.2e-4 relative, single weights a few Adam steps apart). So one
+    chunk is compared: counts exactly, losses to 1e-3 relative, and each parameter tensor of seed i
+    must be at least 10x closer to seed i's separate run than the two seeds' runs are to each other."""
     two = easy_config(train__num_seeds=2, train__seed=3)
     init2, chunk2, _ = cli.programs(two)
     init1, chunk1, _ = cli.programs(easy_config())
     total = _total(two)
     s2, m2 = chunk2(init2(jnp.stack([jax.random.PRNGKey(3), jax.random.PRNGKey(4)]), total))
     m2 = jax.device_get(m2)
+    separate = []
     for i, seed in enumerate((3, 4)):
         s1, m1 = chunk1(init1(jax.random.PRNGKey(seed)[None], total))
         for k, v in jax.device_get(m1).items():
             np.testing.assert_allclose(v[0], m2[k][i], rtol=1e-3, atol=1e-5, err_msg=k)
         for k in ("episodes", "success_sum", "arrivals", "collisions", "updates", "actor_updates"):
             assert m1[k][0] == m2[k][i], k
-        jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x)[0], np.asarray(y)[i], rtol=1e-3, atol=5e-4),
-                     s1.agent.actor, s2.agent.actor)
-    # The seeds differ from each other.
-    assert not np.allclose(np.asarray(jax.tree.leaves(s2.agent.actor)[0][0]),
-                           np.asarray(jax.tree.leaves(s2.agent.actor)[0][1]))
-
+        separate.append(jax.tree.map(lambda x: np.asarray(x)[0], s1.agent.actor))
+    vmapped = [jax.tree.map(lambda x, i=i: np.asarray(x)[i], s2.agent.actor) for i in (0, 1)]
+    for i in (0, 1):
+        for same, sep, other in zip(jax.tree.leaves(vmapped[i]), jax.tree.leaves(separate[i]),
+                                    jax.tree.leaves(separate[1 - i])):
+            gap, between = np.linalg.norm(same - sep), np.linalg.norm(sep - other)
+            assert gap < 0.1 * between, (gap, between)
 
 def test_replay_stores_the_acting_carry_reset_at_episode_start():
     config = easy_config()
