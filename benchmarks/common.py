@@ -25,3 +25,23 @@ def run_meta() -> dict:
     return {"command": " ".join([os.path.basename(sys.executable)] + sys.argv), "gpu": gpu_name(),
             "device": str(jax.devices()[0]), "date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
             "versions": {"python": platform.python_version(), **{p: version(p) for p in pkgs}}}
+
+
+def write_results(out_dir: str, stem: str, title: str, meta: dict, rows: list[dict],
+                  columns: list[tuple[str, str]]) -> str:
+    """Writes <stem>.json (meta + rows) and <stem>.md (a table of `columns`: (header, row key)).
+
+    Called after every row, so a sweep that fails part-way keeps what it measured."""
+    import json
+    os.makedirs(out_dir, exist_ok=True)
+    with open(os.path.join(out_dir, f"{stem}.json"), "w") as f:
+        json.dump({**meta, "results": rows}, f, indent=1)
+    fmt = lambda v: f"{v:,}" if isinstance(v, int) and not isinstance(v, bool) else str(v)
+    lines = [f"# {title} ({meta['gpu']}, {meta['date']})", "", f"Command: `{meta['command']}`  ",
+             f"Versions: {meta['versions']}", "", "| " + " | ".join(h for h, _ in columns) + " |",
+             "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(fmt(r[k]) for _, k in columns) + " |" for r in rows]
+    table = "\n".join(lines) + "\n"
+    with open(os.path.join(out_dir, f"{stem}.md"), "w") as f:
+        f.write(table)
+    return table

@@ -24,7 +24,7 @@ import jax
 import docrl_jax.envs as envs
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta  # noqa: E402
+from common import run_meta, write_results  # noqa: E402
 
 
 def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str, unroll: int | None = None) -> dict:
@@ -77,26 +77,17 @@ def main(argv=None) -> int:
 
     meta = run_meta()
     print(json.dumps(meta), flush=True)
-    rows = []
+    columns = [("variant", "variant"), ("unroll", "substep_unroll"), ("num_envs", "num_envs"),
+               ("compile (s)", "compile_s"), ("control steps/s", "control_steps_per_s"),
+               ("simulated s / s", "sim_seconds_per_s"), ("physics steps/s", "physics_steps_per_s")]
+    rows, table = [], ""
     for variant in args.variants:
         for unroll in args.unroll:
             for n in args.num_envs:
-                row = measure(args.scenario, n, args.steps, args.repeats, variant, unroll)
-                rows.append(row)
-                print(json.dumps(row), flush=True)
-    os.makedirs(args.out, exist_ok=True)
-    with open(os.path.join(args.out, "env_throughput.json"), "w") as f:
-        json.dump({**meta, "results": rows}, f, indent=1)
-    lines = [f"# Environment throughput ({meta['gpu']}, {meta['date']})", "",
-             f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
-             "| variant | unroll | num_envs | compile (s) | control steps/s | simulated s / s | physics steps/s |",
-             "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['variant']} | {r['substep_unroll']} | {r['num_envs']:,} | {r['compile_s']} | {r['control_steps_per_s']:,} | "
-                     f"{r['sim_seconds_per_s']:,} | {r['physics_steps_per_s']:,} |")
-    with open(os.path.join(args.out, "env_throughput.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+                rows.append(measure(args.scenario, n, args.steps, args.repeats, variant, unroll))
+                print(json.dumps(rows[-1]), flush=True)
+                table = write_results(args.out, "env_throughput", "Environment throughput", meta, rows, columns)
+    print(table)
     return 0
 
 

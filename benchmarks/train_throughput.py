@@ -25,7 +25,7 @@ from docrl_jax.config import load_config
 from docrl_jax.train import make_trainer
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta  # noqa: E402
+from common import run_meta, write_results  # noqa: E402
 
 
 def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str]) -> dict:
@@ -71,25 +71,16 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     meta = run_meta()
     print(json.dumps(meta), flush=True)
-    rows = []
-    os.makedirs(args.out, exist_ok=True)
+    columns = [("config", "config"), ("num_envs", "num_envs"), ("updates/iter", "updates_per_step"),
+               ("compile (s)", "compile_s"), ("env steps/s", "env_steps_per_s"),
+               ("grad updates/s", "grad_updates_per_s"), ("peak GPU mem (GiB)", "peak_gpu_memory_gib")]
+    rows, table = [], ""
     for name in args.configs:
         for n in args.num_envs:
-            row = measure(name, n, args.iters, args.repeats, args.set)
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-            with open(os.path.join(args.out, "train_throughput.json"), "w") as f:  # after every row
-                json.dump({**meta, "results": rows}, f, indent=1)
-    lines = [f"# Trainer throughput ({meta['gpu']}, {meta['date']})", "", f"Command: `{meta['command']}`  ",
-             f"Versions: {meta['versions']}", "",
-             "| config | num_envs | updates/iter | compile (s) | env steps/s | grad updates/s | peak GPU mem (GiB) |",
-             "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['config']} | {r['num_envs']:,} | {r['updates_per_step']} | {r['compile_s']} | "
-                     f"{r['env_steps_per_s']:,} | {r['grad_updates_per_s']:,} | {r['peak_gpu_memory_gib']} |")
-    with open(os.path.join(args.out, "train_throughput.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+            rows.append(measure(name, n, args.iters, args.repeats, args.set))
+            print(json.dumps(rows[-1]), flush=True)
+            table = write_results(args.out, "train_throughput", "Trainer throughput", meta, rows, columns)
+    print(table)
     return 0
 
 

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
+from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
 from docrl_jax.networks import unroll
 
 
@@ -110,3 +111,15 @@ def _unroll_with_out(actor, params, carry, obs, start, memory):
 
 def adam(lr: float) -> optax.GradientTransformation:
     return optax.adam(lr)
+
+
+def init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx) -> "AgentState":
+    """Fresh actor and critics (targets start equal to them) with their optimiser states."""
+    k_a, k_c = jax.random.split(key)
+    obs, act = jnp.zeros((1, OBS_SIZE)), jnp.zeros((1, ACTION_SIZE))
+    actor_params = actor.init(k_a, actor.init_carry((1,)), obs)
+    critic_params = critic.init(k_c, obs, act)
+    return AgentState(actor=actor_params, actor_target=actor_params, critic=critic_params,
+                      critic_target=critic_params, actor_opt=actor_tx.init(actor_params),
+                      critic_opt=critic_tx.init(critic_params), log_alpha=log_alpha,
+                      alpha_opt=alpha_tx.init(log_alpha), updates=jnp.zeros((), jnp.int32))

@@ -17,10 +17,10 @@ import math
 import jax
 import jax.numpy as jnp
 
-from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, masked_mean, policy_freq, run_actor,
+from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, init_agent_state, masked_mean, policy_freq, run_actor,
                                          soft_update, split_batch)
 from docrl_jax.config import Config
-from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
+from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import Critic, make_actor
 
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
@@ -65,15 +65,8 @@ def make_sac(config: Config) -> Agent:
     burn_in = config.replay.burn_in
 
     def init(key):
-        k_a, k_c = jax.random.split(key)
-        obs, act = jnp.zeros((1, OBS_SIZE)), jnp.zeros((1, ACTION_SIZE))
-        actor_params = actor.init(k_a, actor.init_carry((1,)), obs)
-        critic_params = critic.init(k_c, obs, act)
         log_alpha = jnp.asarray(math.log(a_cfg.init_alpha), jnp.float32)
-        return AgentState(actor=actor_params, actor_target=actor_params, critic=critic_params,
-                          critic_target=critic_params, actor_opt=actor_tx.init(actor_params),
-                          critic_opt=critic_tx.init(critic_params), log_alpha=log_alpha,
-                          alpha_opt=alpha_tx.init(log_alpha), updates=jnp.zeros((), jnp.int32))
+        return init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx)
 
     def init_noise(num_envs):
         return jnp.zeros((num_envs, ACTION_SIZE))  # unused: SAC explores by sampling
