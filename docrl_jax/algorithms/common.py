@@ -123,3 +123,9 @@ def init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_t
                       critic_target=critic_params, actor_opt=actor_tx.init(actor_params),
                       critic_opt=critic_tx.init(critic_params), log_alpha=log_alpha,
                       alpha_opt=alpha_tx.init(log_alpha), updates=jnp.zeros((), jnp.int32))
+
+
+def apply_gradients(tx: optax.GradientTransformation, grads, opt_state, params):
+    """One optimiser step: (new params, new optimiser state)."""
+    updates, opt_state = tx.update(grads, opt_state, params)
+    return optax.apply_updates(params, updates), opt_state

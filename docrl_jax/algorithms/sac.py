@@ -17,8 +17,9 @@ import math
 import jax
 import jax.numpy as jnp
 
-from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, init_agent_state, masked_mean, policy_freq, run_actor,
-                                         soft_update, split_batch)
+from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, apply_gradients,
+                                         init_agent_state, masked_mean, policy_freq, run_actor, soft_update,
+                                         split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import Critic, make_actor
@@ -88,18 +89,16 @@ def make_sac(config: Config) -> Agent:
         eps_pi = jax.random.normal(k_pi, seq.action.shape)
         (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
             state.critic, critic, actor, state, seq, eps_next, a_cfg, memory)
-        c_updates, critic_opt = critic_tx.update(c_grads, state.critic_opt, state.critic)
-        state = state.replace(critic=jax.tree.map(jnp.add, state.critic, c_updates), critic_opt=critic_opt,
-                              updates=state.updates + 1)
+        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic)
+        state = state.replace(critic=critic_params, critic_opt=critic_opt, updates=state.updates + 1)
 
         def policy_step(s: AgentState):
             (a_loss, logp), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
                 s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, memory)
-            a_updates, actor_opt = actor_tx.update(a_grads, s.actor_opt, s.actor)
+            actor_params, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor)
             al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, a_cfg.target_entropy, seq.mask)
-            al_update, alpha_opt = alpha_tx.update(al_grad, s.alpha_opt, s.log_alpha)
-            s = s.replace(actor=jax.tree.map(jnp.add, s.actor, a_updates), actor_opt=actor_opt,
-                          log_alpha=s.log_alpha + al_update, alpha_opt=alpha_opt,
+            log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha)
+            s = s.replace(actor=actor_params, actor_opt=actor_opt, log_alpha=log_alpha, alpha_opt=alpha_opt,
                           critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
             return s, (a_loss, al_loss)
 

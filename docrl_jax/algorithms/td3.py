@@ -16,8 +16,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, init_agent_state, masked_mean, policy_freq, run_actor,
-                                         soft_update, split_batch)
+from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, apply_gradients,
+                                         init_agent_state, masked_mean, policy_freq, run_actor, soft_update,
+                                         split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import Critic, make_actor
@@ -81,14 +82,12 @@ def make_td3(config: Config) -> Agent:
         noise = jax.random.normal(key, seq.action.shape) if not ddpg else jnp.zeros(seq.action.shape)
         (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
             state.critic, critic, actor, state, seq, noise, a_cfg, memory)
-        c_updates, critic_opt = critic_tx.update(c_grads, state.critic_opt, state.critic)
-        state = state.replace(critic=jax.tree.map(jnp.add, state.critic, c_updates), critic_opt=critic_opt,
-                              updates=state.updates + 1)
+        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic)
+        state = state.replace(critic=critic_params, critic_opt=critic_opt, updates=state.updates + 1)
 
         def policy_step(s: AgentState):
             a_loss, a_grads = jax.value_and_grad(actor_loss)(s.actor, actor, critic, s.critic, seq, memory)
-            a_updates, actor_opt = actor_tx.update(a_grads, s.actor_opt, s.actor)
-            new_actor = jax.tree.map(jnp.add, s.actor, a_updates)
+            new_actor, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor)
             s = s.replace(actor=new_actor, actor_opt=actor_opt,
                           actor_target=soft_update(s.actor_target, new_actor, a_cfg.tau),
                           critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
