@@ -35,7 +35,7 @@ import math
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -583,9 +583,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         for seed_index in seed_indices:
             if seed_index not in policies:
                 try:
-                    policies[seed_index] = load_policy_for(args, env.params, seed_index)
+                    policy, method = load_policy_for(args, env.params, seed_index)
                 except RunDirError as e:
                     parser.error(str(e))
+                if policies and args.run is not None:
+                    # The seeds of one run share their networks: keep the first seed's functions so
+                    # the compiled rollout (cached per act function) serves every seed.
+                    first = next(iter(policies.values()))[0]
+                    policy = replace(first, params=policy.params)
+                policies[seed_index] = (policy, method)
             policy, method = policies[seed_index]
             for row, trials in evaluate_policy(policy, method, [scenario], cfg["directions"], args.trials,
                                                args.max_steps, args.seed, cfg["env"], seed_index, report):

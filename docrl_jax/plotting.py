@@ -306,6 +306,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 # ------------------------------------------------------------------------------------ learning curves
 
 CURVE_METRICS = ("success_rate", "episode_return")
+# The trainer's evaluation of the paper's start/goal pairs (`train.eval_paper_pairs`): drawn as extra
+# rows when a metrics.csv has them, since they track what Table I measures.
+PAPER_PAIR_METRICS = ("success_air_to_water", "success_water_to_air")
+METRIC_LABELS = {"success_rate": "eval success (random goals)", "episode_return": "eval return (random goals)",
+                 "success_air_to_water": "success, paper A-W pair", "success_water_to_air": "success, paper W-A pair"}
 CURVE_X = (("env_steps", "environment steps"), ("wall_time_s", "wall-clock (s)"))
 REQUIRED_COLUMNS = ("env_steps", "wall_time_s", "seed", "success_rate", "episode_return")
 
@@ -362,7 +367,8 @@ def plot_learning_curves(csv_paths: Sequence, out_dir, labels: Sequence[str] | N
     """Success rate and return against env steps and wall-clock, mean +- std over seeds.
 
     Each metrics.csv may hold several seeds (its `seed` column); files with the same label (default:
-    the name of the file's directory) are pooled, so one curve per method. Writes one 2 x 2 PNG."""
+    the name of the file's directory) are pooled, so one curve per method. Writes one PNG with one
+    row per metric (plus the paper-pair success rows when any file has them) and two columns."""
     csv_paths = [Path(p) for p in csv_paths]
     if not csv_paths:
         raise ValueError("plot_learning_curves: no metrics.csv given")
@@ -373,20 +379,23 @@ def plot_learning_curves(csv_paths: Sequence, out_dir, labels: Sequence[str] | N
     groups: dict[str, list] = defaultdict(list)
     for p, lab in zip(csv_paths, labels):
         groups[lab].extend(read_metrics(p).values())
-    fig, axes = plt.subplots(2, 2, figsize=(11, 7.5))
+    metrics = list(CURVE_METRICS) + [
+        m for m in PAPER_PAIR_METRICS
+        if any(m in s and np.isfinite(s[m]).any() for seeds in groups.values() for s in seeds)]
+    fig, axes = plt.subplots(len(metrics), 2, figsize=(11, 3.75 * len(metrics)), squeeze=False)
     for col, (xname, xlabel) in enumerate(CURVE_X):
-        for row, metric in enumerate(CURVE_METRICS):
+        for row, metric in enumerate(metrics):
             ax = axes[row, col]
             for i, (lab, seeds) in enumerate(groups.items()):
-                grid, mean, std, n = aggregate_curves([(s[xname], s[metric]) for s in seeds])
+                grid, mean, std, n = aggregate_curves([(s[xname], s[metric]) for s in seeds if metric in s])
                 if n == 0:
                     continue
                 c = f"C{i}"
                 ax.plot(grid, mean, color=c, label=f"{lab} (n={n} seed{'s' if n != 1 else ''})")
                 ax.fill_between(grid, mean - std, mean + std, color=c, alpha=0.2)
-            ax.set(xlabel=xlabel, ylabel=metric.replace("_", " "))
+            ax.set(xlabel=xlabel, ylabel=METRIC_LABELS.get(metric, metric.replace("_", " ")))
             ax.grid(alpha=0.3)
-            if metric == "success_rate":
+            if metric.startswith("success"):
                 ax.set_ylim(-0.03, 1.03)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle("Learning curves: mean ± std over seeds")

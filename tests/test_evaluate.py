@@ -176,6 +176,24 @@ def test_learning_curves(tmp_path):
     assert np.all(std >= 0) and mean[-1] == pytest.approx(np.mean([190 + s for s in range(3)]), abs=0.5)
 
 
+def test_learning_curves_paper_pair_rows(tmp_path):
+    """A metrics.csv with the trainer's paper-pair columns gets two more rows (A-W, W-A success)."""
+    import matplotlib.image as mpimg
+    plain = tmp_path / "plain" / "metrics.csv"
+    _write_metrics(plain, [0])
+    pairs = tmp_path / "pairs" / "metrics.csv"
+    pairs.parent.mkdir()
+    with open(pairs, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["env_steps", "wall_time_s", "seed", "success_rate", "episode_return",
+                    "success_air_to_water", "success_water_to_air"])
+        for i in range(20):
+            w.writerow([i * 1000, i * 2.0, 0, i / 20, 10 * i, i / 20, 1 - i / 20])
+    (a,) = plotting.plot_learning_curves([plain], tmp_path / "a")
+    (b,) = plotting.plot_learning_curves([pairs], tmp_path / "b")
+    assert mpimg.imread(b).shape[0] == pytest.approx(2 * mpimg.imread(a).shape[0], rel=0.02)
+
+
 def test_learning_curves_missing_column(tmp_path):
     p = tmp_path / "metrics.csv"
     p.write_text("env_steps,seed\n1,0\n")
@@ -355,3 +373,30 @@ def test_cli_run_without_trainer_is_a_clear_error(tmp_path, capsys, monkeypatch)
     with pytest.raises(SystemExit) as e:
         evaluate.main(["--run", str(run), "--scenarios", "1", "--out", str(tmp_path / "o")])
     assert e.value.code == 2 and "needs the trainer module docrl_jax.train" in capsys.readouterr().err
+
+
+def test_cli_run_seeds_share_one_compile(monkeypatch, tmp_path):
+    """Each seed's own parameters are used, through one compiled rollout (the seeds of a run share
+    their networks): seed 1's parameters make the scripted policy dive, seed 0's fly straight."""
+    import sys
+    import types
+    import jax.numpy as jnp
+    from docrl_jax.policy import Policy
+    base = straight_line()
+    mod = types.ModuleType("docrl_jax.train")
+
+    def load_policy(run_dir, seed_index=0):  # fresh closures on every call, as the real loader makes
+        return Policy(name="p", params={"dive": jnp.asarray(seed_index == 1)},
+                      init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a))
+    mod.load_policy = load_policy
+    monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
+    run = tmp_path / "two_seeds"
+    run.mkdir()
+    (run / "config.yaml").write_text("algo: scripted\n")
+    out = tmp_path / "out"
+    assert evaluate.main(["--run", str(run), "--seed-index", "0,1", "--trials", str(N), "--scenarios", "1",
+                          "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "0",
+                          "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]", "--out", str(out)]) == 0
+    rows = json.loads((out / "results.json").read_text())["results"]
+    assert [(r["seed_index"], r["successes"], r["collisions"]) for r in rows] == [(0, N, 0), (1, 0, N)]
+    assert rows[0]["compile_s"] is not None and rows[1]["compile_s"] is None and rows[1]["run_s"] is not None

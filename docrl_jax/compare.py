@@ -1,0 +1,128 @@
+"""Table I side by side: several `python -m docrl_jax.evaluate` outputs in one table, beside the
+paper's published numbers.
+
+    python -m docrl_jax.compare docs/results/td3 docs/results/sac docs/results/sto docs/results/det \
+        docs/results/bba --out docs/results/table_i.md
+
+Each argument is an evaluation output directory (its results.json). A multi-seed evaluation
+contributes its mean and spread over seeds; a single-seed one (or BBA) one value. Rows are ordered
+as in the paper (DoCRL-D, DoCRL-S, Sto., Det., BBA, then any other method).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from docrl_jax import paper_results
+from docrl_jax.evaluate import SHORT, _pm, aggregate_seeds
+
+DIRECTIONS = ("air_to_water", "water_to_air")
+
+
+def load_eval(path: str | Path) -> list[dict]:
+    """The over-seeds rows of one evaluation output dir (computed from its per-seed rows if the file
+    has none). Raises FileNotFoundError / ValueError naming the file and what is wrong."""
+    path = Path(path)
+    f = path / "results.json" if path.is_dir() else path
+    if not f.exists():
+        raise FileNotFoundError(f"{str(f)!r} does not exist; pass directories written by "
+                                "`python -m docrl_jax.evaluate --out DIR`")
+    try:
+        data = json.loads(f.read_text())
+        rows = data["results"]
+    except (json.JSONDecodeError, KeyError, TypeError) as e:
+        raise ValueError(f"{str(f)!r} is not an evaluation results.json ({type(e).__name__}: {e})") from None
+    if not rows:
+        raise ValueError(f"{str(f)!r} holds no results")
+    aggs = data.get("over_seeds") or aggregate_seeds(rows)
+    for a in aggs:  # JSON wrote NaN as null
+        for k, v in a.items():
+            if v is None and k.endswith(("_mean", "_std")):
+                a[k] = math.nan
+    return aggs
+
+
+def _order(aggs: list[dict]) -> list[dict]:
+    rank = {m: i for i, m in enumerate(paper_results.METHODS)}
+    return sorted(aggs, key=lambda a: (DIRECTIONS.index(a["direction"]), rank.get(a["method"], len(rank)),
+                                       a["method"]))
+
+
+def _success(a: dict) -> str:
+    per_seed = a["successes_per_seed"]
+    if len(per_seed) == 1:
+        return f"{per_seed[0]}"
+    return f"{a['successes_mean']:.1f} ± {a['successes_std']:.1f} {per_seed}"
+
+
+def side_by_side_markdown(aggs: list[dict]) -> str:
+    """Markdown: the paper's scenario (Table I) with the published rows beside ours, then every
+    scenario evaluated, ours only."""
+    aggs = _order(aggs)
+    scen = paper_results.TABLE_I_SCENARIO
+    out = [f"### Scenario {scen}: ours beside the paper's Table I\n",
+           "Ours: successes out of 100 per seed, mean ± std over seeds [each seed]; t_air, t_water: simulated "
+           "seconds, mean ± std pooled over all seeds' successful trials; collisions, time-outs: mean per seed. "
+           "Paper: one training run, 100 trials.\n",
+           "| Test | ours: success | ours: t_air (s) | ours: t_water (s) | ours: collisions | ours: time-outs | "
+           "paper: success | paper: t_air (s) | paper: t_water (s) |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for a in (a for a in aggs if a["scenario"] == scen):
+        try:
+            p = paper_results.lookup(a["method"], a["direction"])
+            paper = f"{p['success']} | {_pm(*p['t_air'])} | {_pm(*p['t_water'])}"
+        except KeyError:
+            paper = "– | – | –"
+        out.append(f"| {SHORT[a['direction']]} {a['method']} | {_success(a)} | {_pm(a['t_air_mean'], a['t_air_std'])} "
+                   f"| {_pm(a['t_water_mean'], a['t_water_std'])} | {a['collisions_mean']:.1f} | "
+                   f"{a['timeouts_mean']:.1f} | {paper} |")
+    scenarios = sorted({a["scenario"] for a in aggs})
+    out += ["", "### Every scenario (ours)\n",
+            "Each cell: successes out of 100, mean ± std over seeds; then t_air / t_water (s), pooled means.\n",
+            "| Test | " + " | ".join(f"Scenario {s}" for s in scenarios) + " |",
+            "|---|" + "---|" * len(scenarios)]
+    keys = list(dict.fromkeys((a["direction"], a["method"]) for a in aggs))
+    for direction, method in keys:
+        cells = []
+        for s in scenarios:
+            match = [a for a in aggs if (a["direction"], a["method"], a["scenario"]) == (direction, method, s)]
+            if not match:
+                cells.append("–")
+                continue
+            a = match[0]
+            mean_sd = (f"{a['successes_mean']:.0f}" if len(a["successes_per_seed"]) == 1
+                       else f"{a['successes_mean']:.1f} ± {a['successes_std']:.1f}")
+            times = (f"{a['t_air_mean']:.1f} / {a['t_water_mean']:.1f}" if math.isfinite(a["t_air_mean"]) else "–")
+            cells.append(f"{mean_sd} ({times})")
+        out.append(f"| {SHORT[direction]} {method} | " + " | ".join(cells) + " |")
+    out += ["", paper_results.NOTE, ""]
+    return "\n".join(out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m docrl_jax.compare", description=__doc__.split("\n\n")[0])
+    ap.add_argument("evals", nargs="+", help="evaluation output directories (or their results.json)")
+    ap.add_argument("--out", help="write the Markdown here (default: print only)")
+    args = ap.parse_args(argv)
+    try:
+        aggs = [a for e in args.evals for a in load_eval(e)]
+    except (FileNotFoundError, ValueError) as e:
+        ap.error(str(e))
+    dupes = {(a["method"], a["scenario"], a["direction"]) for a in aggs}
+    if len(dupes) != len(aggs):
+        ap.error("two evaluations share a method name; give each a distinct --label when evaluating")
+    text = side_by_side_markdown(aggs)
+    print(text)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+"""`python -m docrl_jax.compare`: several evaluation outputs in one Table I beside the paper's rows."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from docrl_jax import compare, evaluate
+
+
+def _row(method, seed, scenario, direction, successes, t_air=10.0, t_water=5.0):
+    n = successes
+    return {"method": method, "seed_index": seed, "scenario": scenario, "direction": direction, "trials": 100,
+            "successes": n, "success_rate": n / 100, "collisions": 100 - n, "out_of_bounds": 0, "timeouts": 0,
+            "diverged": 0, "t_air_mean": t_air if n else float("nan"), "t_air_std": 1.0 if n else float("nan"),
+            "t_water_mean": t_water if n else float("nan"), "t_water_std": 0.5 if n else float("nan"),
+            "time_mean": t_air + t_water, "time_std": 1.0, "path_length_mean": 8.0, "path_length_std": 0.1}
+
+
+def _write(out, rows, seeds=True):
+    evaluate.write_outputs(out, rows, [], {"command": "test"}, evaluate.aggregate_seeds(rows) if seeds else [])
+    return out
+
+
+def test_side_by_side_table(tmp_path):
+    learned = [_row("DoCRL-D", s, sc, d, n) for s, n in ((0, 90), (1, 100), (2, 95))
+               for sc in (1, 2) for d in ("air_to_water", "water_to_air")]
+    bba = [_row("BBA", None, sc, d, 0 if d == "water_to_air" else 34) for sc in (1, 2)
+           for d in ("air_to_water", "water_to_air")]
+    a = _write(tmp_path / "d", learned)
+    b = _write(tmp_path / "bba", bba, seeds=False)
+    aggs = compare.load_eval(b) + compare.load_eval(a)
+    text = compare.side_by_side_markdown(aggs)
+    lines = text.splitlines()
+    aw_d = next(line for line in lines if line.startswith("| A-W DoCRL-D | 95.0"))
+    # ours: mean 95, population std over (90, 100, 95) = 4.08; paper: 100, 14.55 ± 0.87, 11.19 ± 2.86
+    assert "95.0 ± 4.1 [90, 100, 95]" in aw_d and "| 100 | 14.55 ± 0.87 | 11.19 ± 2.86 |" in aw_d
+    wa_bba = next(line for line in lines if line.startswith("| W-A BBA |"))
+    assert "| 0 | – | – |" in wa_bba and "| 32 | 38.01 ± 29.83 | 3.79 ± 0.27 |" in wa_bba
+    # paper order within a direction (DoCRL-D before BBA), A-W before W-A
+    assert lines.index(aw_d) < next(i for i, l in enumerate(lines) if l.startswith("| A-W BBA |"))
+    assert "| A-W DoCRL-D | 95.0 ± 4.1 (10.0 / 5.0) | 95.0 ± 4.1 (10.0 / 5.0) |" in text
+
+
+def test_cli_writes_file_and_rejects_bad_input(tmp_path, capsys):
+    a = _write(tmp_path / "d", [_row("DoCRL-D", 0, 2, "air_to_water", 50)])
+    out = tmp_path / "t.md"
+    assert compare.main([str(a), "--out", str(out)]) == 0
+    assert "| A-W DoCRL-D | 50 |" in out.read_text()
+    with pytest.raises(SystemExit):
+        compare.main([str(tmp_path / "missing")])
+    assert "does not exist" in capsys.readouterr().err
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "results.json").write_text(json.dumps({"meta": {}}))
+    with pytest.raises(SystemExit):
+        compare.main([str(tmp_path / "bad")])
+    assert "not an evaluation results.json" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        compare.main([str(a), str(a)])
+    assert "distinct --label" in capsys.readouterr().err
