@@ -241,7 +241,8 @@ def plot_figure3(eval_dirs: Sequence, scenario: int, path, max_trajectories: int
     per method, columns A-W 3-D, A-W x-y, W-A 3-D, W-A x-y, `max_trajectories` trials each.
 
     Reads each dir's trajectories_s{scenario}_{direction}[_seed{k}].npz and its method name from
-    results.json; `seed_index` picks the seed of a multi-seed run (default: the first found)."""
+    results.json; `seed_index` picks the seed of a multi-seed run (default: the first found); a directory evaluated
+    without seeds (a baseline such as BBA) contributes its only trajectories."""
     import json
     import mujoco
     from docrl_jax.envs.huauv import _scene_path
@@ -259,6 +260,8 @@ def plot_figure3(eval_dirs: Sequence, scenario: int, path, max_trajectories: int
             stem = f"trajectories_s{scenario}_{direction}"
             pattern = f"{stem}_seed{seed_index}.npz" if seed_index is not None else f"{stem}*.npz"
             files = sorted(d.glob(pattern))
+            if not files and seed_index is not None:  # a seedless evaluation (a baseline) in the same figure
+                files = sorted(d.glob(f"{stem}.npz"))
             if not files:
                 raise FileNotFoundError(f"{d}: no {pattern} (run python -m docrl_jax.evaluate --scenarios "
                                         f"{scenario} --out {d})")
@@ -272,7 +275,7 @@ def plot_figure3(eval_dirs: Sequence, scenario: int, path, max_trajectories: int
             ax3.set_title(f"{method}, {short}", fontsize=10)
             ax2.set_title(f"{method}, {short}, x-y plane ({n_ok}/{n} success)", fontsize=10)
     fig.suptitle(f"Trajectories, scenario {scenario} (cf. the paper's Figure 3)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.4 / fig.get_figheight()))  # keep the first row clear of the title
     return _save(fig, path)
 
 

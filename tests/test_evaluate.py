@@ -326,6 +326,15 @@ def test_figure3_and_plotting_cli(tmp_path, oracle_trials, dive_trials):
                      outcome=t["outcome"], start=np.asarray(start), goal=np.asarray(goal))
     out = plotting.plot_figure3([tmp_path / "oracle", tmp_path / "dive"], 1, tmp_path / "fig3.png")
     assert out.stat().st_size > 20_000
+    # a seed of a multi-seed evaluation beside a seedless one (a baseline); a missing seed is an error
+    for direction in evaluate.DIRECTIONS:
+        (tmp_path / "oracle" / f"trajectories_s1_{direction}.npz").rename(
+            tmp_path / "oracle" / f"trajectories_s1_{direction}_seed1.npz")
+    assert plotting.main(["figure3", str(tmp_path / "oracle"), str(tmp_path / "dive"), "--scenario", "1",
+                          "--seed-index", "1", "--out", str(tmp_path / "s.png")]) == 0
+    with pytest.raises(SystemExit):
+        plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "1", "--seed-index", "0",
+                       "--out", str(tmp_path / "t.png")])
     assert plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "1", "--out",
                           str(tmp_path / "f.png")]) == 0
     with pytest.raises(SystemExit):
