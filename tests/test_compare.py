@@ -59,3 +59,15 @@ def test_cli_writes_file_and_rejects_bad_input(tmp_path, capsys):
     with pytest.raises(SystemExit):
         compare.main([str(a), str(a)])
     assert "distinct --label" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("variant", ["paper_reward", "shaped"])
+def test_committed_tables_regenerate(variant):
+    """docs/results/*/table_i.md is exactly what compare makes of the committed evaluation outputs."""
+    from pathlib import Path
+    docs = Path(__file__).resolve().parents[1] / "docs" / "results"
+    dirs = [docs / variant / m for m in ("td3", "sac", "sto", "det")] + [docs / "bba"]
+    aggs = [a for d in dirs for a in compare.load_eval(d)]
+    assert {a["method"] for a in aggs} == {"DoCRL-D", "DoCRL-S", "Sto.", "Det.", "BBA"}
+    assert all(len(a["successes_per_seed"]) == (1 if a["method"] == "BBA" else 3) for a in aggs)
+    assert compare.side_by_side_markdown(aggs) == (docs / variant / "table_i.md").read_text()
