@@ -19,9 +19,7 @@ from pathlib import Path
 from typing import Sequence
 
 from docrl_jax import paper_results
-from docrl_jax.evaluate import SHORT, _pm, aggregate_seeds
-
-DIRECTIONS = ("air_to_water", "water_to_air")
+from docrl_jax.evaluate import DIRECTIONS, SHORT, _pm, aggregate_seeds
 
 
 def load_eval(path: str | Path) -> list[dict]:
@@ -53,11 +51,12 @@ def _order(aggs: list[dict]) -> list[dict]:
                                        a["method"]))
 
 
-def _success(a: dict) -> str:
+def _success(a: dict, show_seeds: bool = True) -> str:
+    """Successes: the count of a single evaluation, else mean ± std over seeds [and each seed's]."""
     per_seed = a["successes_per_seed"]
     if len(per_seed) == 1:
         return f"{per_seed[0]}"
-    return f"{a['successes_mean']:.1f} ± {a['successes_std']:.1f} {per_seed}"
+    return f"{a['successes_mean']:.1f} ± {a['successes_std']:.1f}" + (f" {per_seed}" if show_seeds else "")
 
 
 def side_by_side_markdown(aggs: list[dict]) -> str:
@@ -86,19 +85,16 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
             "Each cell: successes out of 100, mean ± std over seeds; then t_air / t_water (s), pooled means.\n",
             "| Test | " + " | ".join(f"Scenario {s}" for s in scenarios) + " |",
             "|---|" + "---|" * len(scenarios)]
-    keys = list(dict.fromkeys((a["direction"], a["method"]) for a in aggs))
-    for direction, method in keys:
+    by_key = {(a["direction"], a["method"], a["scenario"]): a for a in aggs}
+    for direction, method in dict.fromkeys((d, m) for d, m, _ in by_key):
         cells = []
         for s in scenarios:
-            match = [a for a in aggs if (a["direction"], a["method"], a["scenario"]) == (direction, method, s)]
-            if not match:
+            a = by_key.get((direction, method, s))
+            if a is None:
                 cells.append("–")
                 continue
-            a = match[0]
-            mean_sd = (f"{a['successes_mean']:.0f}" if len(a["successes_per_seed"]) == 1
-                       else f"{a['successes_mean']:.1f} ± {a['successes_std']:.1f}")
             times = (f"{a['t_air_mean']:.1f} / {a['t_water_mean']:.1f}" if math.isfinite(a["t_air_mean"]) else "–")
-            cells.append(f"{mean_sd} ({times})")
+            cells.append(f"{_success(a, show_seeds=False)} ({times})")
         out.append(f"| {SHORT[direction]} {method} | " + " | ".join(cells) + " |")
     out += ["", paper_results.NOTE, ""]
     return "\n".join(out)
