@@ -1,7 +1,10 @@
-"""Trainer throughput: env steps/s and gradient updates/s during training, compile time, peak memory.
+"""Trainer throughput: env steps/s, gradient updates/s and trained samples/s during training, compile
+time, peak memory. Trained samples/s = updates/s x batch_size x (seq_len - burn_in): the sequence
+steps that enter a loss per second (burn-in steps only warm the LSTM up).
 
     python benchmarks/train_throughput.py                                  # td3_lstm, sac_lstm x 256/1,024/4,096
     python benchmarks/train_throughput.py --configs td3_lstm --num-envs 1024 --set agent.critic_hidden=[256,256]
+    python benchmarks/train_throughput.py --configs td3_lstm_paper td3_lstm --num-envs 4096   # old vs new recipe
 
 For each config and num_envs: build the trainer (`docrl_jax.train.make_trainer`), compile one chunk
 (timed separately), run one warm-up chunk (which also fills the buffer past `start_steps` and
@@ -31,7 +34,9 @@ from common import run_meta, write_results  # noqa: E402
 def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str]) -> dict:
     # 128 steps of history per env (the default 50,000 transitions hold only 12 at 4,096 envs).
     overrides = [f"env.num_envs={num_envs}", f"train.log_every={num_envs * iters}", "train.start_steps=0",
-                 "train.num_seeds=1", f"replay.buffer_size={max(50_000, 128 * num_envs)}", *sets]
+                 "train.num_seeds=1", *sets]
+    if load_config(name, check_memory=False).replay.buffer_size < 128 * num_envs:
+        overrides.insert(4, f"replay.buffer_size={128 * num_envs}")
     config = load_config(name, overrides)
     trainer = make_trainer(config)
     state = jax.jit(trainer.init)(jax.random.PRNGKey(0))
@@ -51,11 +56,14 @@ def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str])
     med = statistics.median(times)
     stats = jax.devices()[0].memory_stats() or {}
     upd = config.train.updates_per_step
+    trained = config.replay.seq_len - config.replay.burn_in
     return {"config": name, "algo": config.agent.algo, "num_envs": num_envs, "iters_per_chunk": trainer.iters_per_chunk,
             "updates_per_step": upd, "batch_size": config.replay.batch_size, "seq_len": config.replay.seq_len,
             "compile_s": round(compile_s, 2), "chunk_s_median": round(med, 4), "chunk_s_all": [round(t, 4) for t in times],
             "learning_iters_per_chunk": learn, "env_steps_per_s": round(trainer.steps_per_chunk / med),
             "grad_updates_per_s": round(trainer.iters_per_chunk * upd / med, 1),
+            "trained_steps_per_update": config.replay.batch_size * trained,
+            "trained_samples_per_s": round(trainer.iters_per_chunk * upd * config.replay.batch_size * trained / med),
             "peak_gpu_memory_gib": round(stats.get("peak_bytes_in_use", 0) / 2**30, 3) if stats else None,
             "overrides": overrides}
 
@@ -68,18 +76,20 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--set", action="append", default=[], help="extra config overrides section.key=value")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
+    ap.add_argument("--stem", default="train_throughput", help="result file name (without extension)")
     args = ap.parse_args(argv)
     meta = run_meta()
     print(json.dumps(meta), flush=True)
-    columns = [("config", "config"), ("num_envs", "num_envs"), ("updates/iter", "updates_per_step"),
-               ("compile (s)", "compile_s"), ("env steps/s", "env_steps_per_s"),
-               ("grad updates/s", "grad_updates_per_s"), ("peak GPU mem (GiB)", "peak_gpu_memory_gib")]
+    columns = [("config", "config"), ("num_envs", "num_envs"), ("batch", "batch_size"),
+               ("updates/iter", "updates_per_step"), ("compile (s)", "compile_s"), ("env steps/s", "env_steps_per_s"),
+               ("grad updates/s", "grad_updates_per_s"), ("trained samples/s", "trained_samples_per_s"),
+               ("peak GPU mem (GiB)", "peak_gpu_memory_gib")]
     rows, table = [], ""
     for name in args.configs:
         for n in args.num_envs:
             rows.append(measure(name, n, args.iters, args.repeats, args.set))
             print(json.dumps(rows[-1]), flush=True)
-            table = write_results(args.out, "train_throughput", "Trainer throughput", meta, rows, columns)
+            table = write_results(args.out, args.stem, "Trainer throughput", meta, rows, columns)
     print(table)
     return 0
 

@@ -5,6 +5,11 @@ evaluates and checkpoints. See `docrl_jax.train` for what one chunk does.
     python -m docrl_jax.train --run-dir DIR --resume [--set train.total_env_steps=...]
 
 Exit codes: 0 done, 2 bad config or run directory, 3 non-finite loss, 130 interrupted (checkpoint saved).
+
+Compiled programs are kept in JAX's persistent compilation cache, so a second launch of the same
+config (any seed, length or run directory) skips compilation: by default in
+$XDG_CACHE_HOME/docrl_jax/jax (~/.cache/docrl_jax/jax); `--compile-cache DIR` or the environment
+variable DOCRL_JAX_COMPILE_CACHE choose another folder, and `off` disables it.
 """
 
 from __future__ import annotations
@@ -14,9 +19,12 @@ import contextlib
 import csv
 import dataclasses
 import functools
+import json
 import math
+import os
 import signal
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import jax
@@ -35,6 +43,7 @@ from docrl_jax.run_dir import CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, TB_DIR,
 from docrl_jax.train import make_trainer
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
+STARTUP_FILE = "startup.json"   # compile time and launch-to-first-chunk seconds of the latest launch
 _EVAL_SALT = 0x5EA1
 
 
@@ -46,25 +55,65 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run-dir", help="output directory (default runs/<name>-<UTC time>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its latest checkpoint")
     p.add_argument("--no-progress", action="store_true", help="print one line per chunk instead of a progress bar")
+    p.add_argument("--compile-cache", default=None, metavar="DIR|off",
+                   help="JAX persistent compilation cache folder (default $DOCRL_JAX_COMPILE_CACHE, else "
+                        "~/.cache/docrl_jax/jax); 'off' disables it")
     return p
+
+
+def default_compile_cache() -> str:
+    env = os.environ.get("DOCRL_JAX_COMPILE_CACHE")
+    if env:
+        return env
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "docrl_jax", "jax")
+
+
+def enable_compile_cache(path: str | None) -> str | None:
+    """Turns on JAX's persistent compilation cache in `path` (None: the default; 'off': disabled).
+    Returns the folder used, or None. Programs that compile in under a second are not stored."""
+    path = default_compile_cache() if path is None else path
+    if path.lower() in ("off", "none", ""):
+        return None
+    os.makedirs(path, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    return path
+
+
+def device_line() -> str:
+    """What the run is on, for the console: 'GPU: NVIDIA H100 80GB HBM3 (1 device)' or a CPU warning."""
+    devs = jax.devices()
+    kind = devs[0].platform
+    if kind == "cpu":
+        return (f"CPU ({os.cpu_count()} cores): no GPU found, training will be slow; the packaged defaults "
+                f"are sized for one GPU (see the ETA)")
+    return f"{kind.upper()}: {devs[0].device_kind} ({len(devs)} device{'s' if len(devs) > 1 else ''})"
 
 
 def main(argv: list[str] | None = None) -> int:
     launch = time.time()
     args = build_parser().parse_args(argv)
     console = Console()
+    notes: list[str] = []
     try:
-        config, run_dir = _resolve(args)
+        config, run_dir = _resolve(args, notes)
     except (ConfigError, RunDirError) as e:
         console.print(f"[bold red]error:[/] {e}")
         return EXIT_CONFIG
+    cache = enable_compile_cache(args.compile_cache)
     console.print(f"[bold]run directory:[/] {run_dir}")
     console.print(Syntax(to_yaml(config), "yaml", theme="ansi_dark"))
+    console.print(f"[bold]device:[/] {device_line()}")
+    for note in notes:
+        console.print(f"[bold]chosen for this device:[/] {note}")
+    console.print(f"[bold]compilation cache:[/] {cache or 'off'}")
     return run(config, run_dir, resume=args.resume, console=console, show_progress=not args.no_progress,
                launch_time=launch)
 
 
-def _resolve(args) -> tuple[Config, Path]:
+def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
     if args.resume:
         if not args.run_dir:
             raise RunDirError("--resume needs --run-dir DIR")
@@ -75,10 +124,10 @@ def _resolve(args) -> tuple[Config, Path]:
         read_config(run_dir)  # clear errors for a missing dir or config
         if checkpoint.latest_step(run_dir) is None:
             raise RunDirError(f"{str(run_dir)!r} has no checkpoint to resume from")
-        return load_config(run_dir / CONFIG_FILE, args.set), run_dir
+        return load_config(run_dir / CONFIG_FILE, args.set, notes=notes), run_dir
     if not args.config:
         raise ConfigError("--config is required (a packaged name such as td3_lstm, or a YAML path)")
-    config = load_config(args.config, args.set)
+    config = load_config(args.config, args.set, notes=notes)
     run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.name}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
     if checkpoint.latest_step(run_dir) is not None:
         raise RunDirError(f"{str(run_dir)!r} already holds a run; pass --resume to continue it or choose another --run-dir")
@@ -136,9 +185,14 @@ def programs(config: Config):
     # The programs do not depend on the name, the seed values (keys are arguments), the run length
     # (a runner-state field) or when to evaluate and checkpoint, so one compilation serves them all;
     # memoised so a resume in the same process compiles nothing.
+    return _programs(_program_config(config))
+
+
+def _program_config(config: Config) -> Config:
+    """The config with every field that does not shape the compiled programs set to a constant."""
     train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
                                 keep_checkpoints=1)
-    return _programs(dataclasses.replace(config, name="run", train=train))
+    return dataclasses.replace(config, name="run", train=train)
 
 
 @functools.lru_cache(maxsize=8)
@@ -157,6 +211,31 @@ def _programs(config: Config):
             jax.jit(lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))))
 
 
+def compiled_programs(config: Config):
+    """`programs(config)` compiled ahead of time, the three at once in threads (XLA compiles them in
+    parallel, which shortens start-up), memoised like `programs`. Returns (init, chunk, evaluate,
+    compile seconds of this call; 0 when memoised)."""
+    key = (_program_config(config),)
+    if key in _COMPILED:
+        return (*_COMPILED[key], 0.0)
+    init, chunk, evaluate = programs(config)
+    n = config.train.num_seeds
+    keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
+    total = jax.ShapeDtypeStruct((), jnp.int32)
+    abstract = jax.eval_shape(init, keys, total)
+    t0 = time.time()
+    with ThreadPoolExecutor(3) as pool:
+        jobs = [pool.submit(lambda: init.lower(keys, total).compile()),
+                pool.submit(lambda: chunk.lower(abstract).compile()),
+                pool.submit(lambda: evaluate.lower(abstract.agent.actor, keys).compile())]
+        compiled = tuple(j.result() for j in jobs)
+    _COMPILED[key] = compiled
+    return (*compiled, time.time() - t0)
+
+
+_COMPILED: dict = {}
+
+
 def run(config: Config, run_dir: str | Path, resume: bool = False, console: Console | None = None,
         show_progress: bool = True, launch_time: float | None = None, stop_after_chunks: int | None = None) -> int:
     """Trains (or resumes) `config` into `run_dir`. `stop_after_chunks` acts like a Ctrl-C after that
@@ -172,7 +251,10 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     trainer = make_trainer(config)
     seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    init, chunk, evaluate = programs(config)
+    console.print("compiling the training, evaluation and initialisation programs ...")
+    init, chunk, evaluate, compile_s = compiled_programs(config)
+    console.print(f"compiled in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)")
+    startup = {"compile_s": round(compile_s, 2), "launch_to_compiled_s": round(time.time() - launch_time, 2)}
     mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
     total = jnp.asarray(trainer.total_env_steps, jnp.int32)
     metrics_path = run_dir / METRICS_FILE
@@ -272,6 +354,10 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
                 break
             done_chunks += 1
             chunks_this_call += 1
+            if chunks_this_call == 1:  # start-up as a user sees it: launch to the first trained chunk
+                startup.update(launch_to_first_chunk_s=round(time.time() - launch_time, 2),
+                               first_chunk_s=round(dt, 2), device=device_line())
+                (run_dir / STARTUP_FILE).write_text(json.dumps(startup, indent=1))
             prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
             _accumulate(pending, m)
             _log_chunk(writer, m, env_steps, trainer.steps_per_chunk * len(seeds) / dt)

@@ -28,6 +28,12 @@ class ConfigError(ValueError):
     """An invalid configuration; the message names the key, the value and the valid choices."""
 
 
+# What `auto` sizes resolve to, by JAX backend ("gpu" also stands for "tpu"): envs per seed, and
+# replay steps kept per env (buffer_size = num_envs x that).
+AUTO_NUM_ENVS = {"gpu": 4096, "cpu": 64}
+AUTO_STEPS_PER_ENV = {"gpu": 256, "cpu": 1024}
+
+
 def _f(default: Any, doc: str, choices: tuple | None = None) -> Any:
     return field(default=default, metadata={"doc": doc, "choices": choices})
 
@@ -37,7 +43,9 @@ class EnvConfig:
     scenario: int = _f(2, "Tank layout: 1 empty, 2 four risers (the paper's training scenario), 3 fifteen obstacles.",
                        (1, 2, 3))
     num_envs: int = _f(256, "Environments stepped in parallel (per seed). Each vectorised step adds num_envs "
-                            "transitions; see train.updates_per_step for the update-to-data ratio.")
+                            "transitions; see train.updates_per_step for the update-to-data ratio. 'auto' = "
+                            f"{AUTO_NUM_ENVS['gpu']} on a GPU/TPU (the simulator saturates there), "
+                            f"{AUTO_NUM_ENVS['cpu']} on a CPU; resolved when the config is loaded.")
     overrides: tuple = _f((), "Not a YAML key: every other key under `env:` is an `EnvParams` field "
                               "(docrl_jax/envs/params.py), e.g. wind, max_goal_distance, progress_reward_scale.")
 
@@ -57,7 +65,7 @@ class AgentConfig:
                                           "(orig TD3 512-512, SAC 256-256).")
     memory: bool = _f(True, "true: the LSTM carry flows from step to step and resets at episode start. "
                             "false: zero carry on every call, the original's memoryless LSTM "
-                            "(requires replay.seq_len 1 and replay.burn_in 0).")
+                            "(requires replay.burn_in 0).")
     actor_lr: float = _f(1e-3, "Adam learning rate of the actor (paper 1e-3).")
     critic_lr: float = _f(1e-3, "Adam learning rate of the critics (paper 1e-3).")
     alpha_lr: float = _f(1e-3, "SAC: Adam learning rate of log(alpha) (paper 1e-3 for all optimisers).")
@@ -77,12 +85,20 @@ class AgentConfig:
                                      "(orig floor 0.03 for TD3-LSTM, 0.2 for DDPG).")
     target_entropy: float = _f(-3.0, "SAC: target entropy of the temperature loss (orig -3 = -action size).")
     init_alpha: float = _f(1.0, "SAC: initial temperature (orig log alpha = 0, i.e. 1).")
+    critic_layer_norm: bool = _f(False, "LayerNorm before every hidden ReLU of the critics (ours; the paper's "
+                                        "critics have none). Keeps Q stable with large batches and high rates.")
+    n_step: int = _f(1, "TD target over n rewards inside each sampled sequence (1 = the paper's one-step "
+                        "target); never crosses an episode end or the sequence end (common.nstep_targets).")
+    lr_end_scale: float = _f(1.0, "All learning rates fall linearly with env-step progress from their value to "
+                                  "lr_end_scale x their value at total_env_steps (1 = constant, the paper's).")
 
 
 @dataclass(frozen=True)
 class ReplayConfig:
     buffer_size: int = _f(50_000, "Transitions kept per seed, all envs together (paper silent; orig 50,000). "
-                                  "Each env keeps buffer_size // num_envs steps of its own trajectory.")
+                                  "Each env keeps buffer_size // num_envs steps of its own trajectory. 'auto' = "
+                                  f"num_envs x {AUTO_STEPS_PER_ENV['gpu']} on a GPU/TPU, num_envs x "
+                                  f"{AUTO_STEPS_PER_ENV['cpu']} on a CPU.")
     batch_size: int = _f(256, "Sequences per gradient update (paper minibatch 256). With seq_len 1 this is "
                               "256 transitions, as in the paper.")
     seq_len: int = _f(16, "Steps per sampled sequence (burn-in included). 1 = single transitions.")
@@ -178,8 +194,9 @@ def parse_overrides(items: list[str] | None) -> dict[str, Any]:
 
 
 def load_config(name_or_path: str | os.PathLike, overrides: list[str] | dict[str, Any] | None = None,
-                check_memory: bool = True) -> Config:
-    """Reads a YAML config, applies `--set` overrides, validates; raises ConfigError."""
+                check_memory: bool = True, backend: str | None = None, notes: list | None = None) -> Config:
+    """Reads a YAML config, applies `--set` overrides, resolves `auto` sizes for the backend,
+    validates; raises ConfigError. `notes` (a list) receives one line per `auto` value resolved."""
     path = resolve_config_path(name_or_path)
     try:
         raw = yaml.safe_load(path.read_text()) or {}
@@ -187,11 +204,41 @@ def load_config(name_or_path: str | os.PathLike, overrides: list[str] | dict[str
         raise ConfigError(f"{path}: not valid YAML ({e})") from None
     if isinstance(overrides, list):
         overrides = parse_overrides(overrides)
-    return config_from_dict(raw, overrides or {}, check_memory=check_memory, source=str(path))
+    return config_from_dict(raw, overrides or {}, check_memory=check_memory, source=str(path), backend=backend,
+                            notes=notes)
+
+
+def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = None) -> dict:
+    """Replaces `env.num_envs: auto` and `replay.buffer_size: auto` by the sizes for `backend`
+    (AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV); returns a new dict."""
+    env, replay = raw.get("env"), raw.get("replay")
+    wants = (isinstance(env, dict) and env.get("num_envs") == "auto") or \
+        (isinstance(replay, dict) and replay.get("buffer_size") == "auto")
+    if not wants:
+        return raw
+    if backend is None:
+        import jax
+        backend = jax.default_backend()
+    kind = "cpu" if backend == "cpu" else "gpu"
+    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items()}
+    if isinstance(env, dict) and env.get("num_envs") == "auto":
+        raw["env"]["num_envs"] = AUTO_NUM_ENVS[kind]
+        if notes is not None:
+            notes.append(f"env.num_envs auto -> {AUTO_NUM_ENVS[kind]:,} ({backend})")
+    if isinstance(replay, dict) and replay.get("buffer_size") == "auto":
+        num_envs = raw.get("env", {}).get("num_envs", EnvConfig.num_envs)
+        if isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs > 0:
+            raw["replay"]["buffer_size"] = num_envs * AUTO_STEPS_PER_ENV[kind]
+            if notes is not None:
+                notes.append(f"replay.buffer_size auto -> {raw['replay']['buffer_size']:,} "
+                             f"({AUTO_STEPS_PER_ENV[kind]} steps x {num_envs:,} envs)")
+    return raw
 
 
 def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, check_memory: bool = False,
-                     source: str = "config") -> Config:
+                     source: str = "config", backend: str | None = None, notes: list | None = None) -> Config:
+    """Builds and validates a Config from a YAML-like dict. `auto` sizes resolve for `backend`
+    (default: JAX's default backend); a line per resolved value is appended to `notes`."""
     if not isinstance(raw, dict):
         raise ConfigError(f"{source}: the top level must be a mapping with sections {['name', *SECTIONS]}")
     raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items()}
@@ -209,6 +256,7 @@ def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, check_m
     unknown = sorted(set(raw) - {"name", *SECTIONS})
     if unknown:
         raise ConfigError(f"unknown top-level key(s) {unknown}; valid keys: {['name', *SECTIONS]}")
+    raw = resolve_auto(raw, backend, notes)
     name = _coerce("name", raw.get("name", Config.name), str, None)
     built = {}
     for sec, cls in SECTIONS.items():
@@ -310,7 +358,7 @@ def validate(c: Config) -> Config:
                            ("train.eval_every", t.eval_every, 1), ("train.eval_episodes", t.eval_episodes, 1),
                            ("train.checkpoint_every", t.checkpoint_every, 1), ("train.start_steps", t.start_steps, 0),
                            ("train.keep_checkpoints", t.keep_checkpoints, 1), ("agent.policy_freq", a.policy_freq, 0),
-                           ("replay.burn_in", r.burn_in, 0)]:
+                           ("replay.burn_in", r.burn_in, 0), ("agent.n_step", a.n_step, 1)]:
         if value < lo:
             _bad(key, value, f"must be >= {lo}")
     if not 0 <= t.seed < 2**31 - t.num_seeds:
@@ -320,9 +368,10 @@ def validate(c: Config) -> Config:
     if a.actor == "lstm" and len(a.actor_hidden) != 1:
         _bad("agent.actor_hidden", list(a.actor_hidden), "an lstm actor takes one entry, the LSTM units, e.g. [32]")
     recurrent = a.actor == "lstm" and a.memory
-    if not recurrent and (r.seq_len != 1 or r.burn_in != 0):
+    if not recurrent and r.burn_in != 0:
         why = "an mlp actor" if a.actor == "mlp" else "agent.memory false (the memoryless LSTM)"
-        _bad("replay.seq_len/burn_in", (r.seq_len, r.burn_in), f"{why} needs seq_len 1 and burn_in 0")
+        _bad("replay.burn_in", r.burn_in, f"{why} has no carry to warm up: set burn_in 0 (seq_len > 1 only "
+                                          f"serves agent.n_step)")
     capacity = r.buffer_size // e.num_envs
     if capacity < r.seq_len + 1:
         _bad("replay.buffer_size", r.buffer_size,
@@ -334,6 +383,11 @@ def validate(c: Config) -> Config:
                        ("agent.ou_sigma_final", a.ou_sigma_final)]:
         if value < 0:
             _bad(key, value, "must be >= 0 (0 disables it; a learning rate of 0 freezes learning)")
+    if not 0.0 < a.lr_end_scale <= 1.0:
+        _bad("agent.lr_end_scale", a.lr_end_scale, "must be in (0, 1] (1 = constant learning rates)")
+    if a.n_step > r.seq_len - r.burn_in:
+        _bad("agent.n_step", a.n_step, f"must be <= the trained steps per sequence, replay.seq_len - burn_in = "
+                                       f"{r.seq_len - r.burn_in}")
     if not 0.0 <= a.gamma < 1.0:
         _bad("agent.gamma", a.gamma, "must be in [0, 1)")
     if not 0.0 < a.tau <= 1.0:

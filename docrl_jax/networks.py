@@ -65,21 +65,40 @@ class MLPActor(nn.Module):
         return (jnp.zeros((*batch_shape, 1), jnp.float32),)  # placeholder: keeps one carry layout
 
 
+class QNetwork(nn.Module):
+    """One Q-network on concat(obs, action): hidden ReLU layers (each optionally LayerNorm'd before
+    the ReLU) -> one value."""
+    hidden: Sequence[int]
+    layer_norm: bool = False
+
+    @nn.compact
+    def __call__(self, x):
+        for i, width in enumerate(self.hidden):
+            x = nn.Dense(width, name=f"dense_{i}")(x)
+            if self.layer_norm:
+                x = nn.LayerNorm(name=f"norm_{i}")(x)
+            x = nn.relu(x)
+        return nn.Dense(1, name="out")(x)[..., 0]
+
+
 class Critic(nn.Module):
-    """`num` independent Q-networks on concat(obs, action); returns Q of shape [num, ...]."""
+    """`num` independent Q-networks on concat(obs, action); returns Q of shape [num, ...].
+
+    The heads are one `nn.vmap`-ed ensemble: their parameters are stacked on a leading axis of size
+    `num` (params["params"]["q"]["dense_0"]["kernel"] is [num, in, out]) and XLA runs all heads as one
+    batched matmul per layer instead of one small matmul per head. `layer_norm` normalises every hidden
+    layer (as in PQN, Brax/Playground SAC and FastTD3-style critics); it keeps the critic stable under
+    the large batches and learning rates that make training fast."""
     hidden: Sequence[int]
     num: int = 2
+    layer_norm: bool = False
 
     @nn.compact
     def __call__(self, obs, action):
         x = jnp.concatenate([obs, action], axis=-1)
-        qs = []
-        for k in range(self.num):
-            h = x
-            for i, width in enumerate(self.hidden):
-                h = nn.relu(nn.Dense(width, name=f"q{k}_dense_{i}")(h))
-            qs.append(nn.Dense(1, name=f"q{k}_out")(h)[..., 0])
-        return jnp.stack(qs)
+        ensemble = nn.vmap(QNetwork, variable_axes={"params": 0}, split_rngs={"params": True},
+                           in_axes=None, out_axes=0, axis_size=self.num)
+        return ensemble(tuple(self.hidden), self.layer_norm, name="q")(x)
 
 
 def make_actor(kind: str, hidden: Sequence[int], stochastic: bool) -> nn.Module:
@@ -93,8 +112,13 @@ def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = T
 
     The carry is zeroed *before* a step whose reset flag is set (the first step of an episode), which
     is exactly what happened while acting; with memory=False it is zeroed before every step (the
-    original's memoryless LSTM). Returns (carries_in [T, ...], outputs [T, ...], final carry), where
-    carries_in[t] is the carry the actor received at step t.
+    original's memoryless LSTM). Returns (carries_in, outputs, final carry, carries_after), each
+    stacked on time: carries_in[t] is the carry the actor received at step t, carries_after[t] the one
+    it would read step t's *next* obs with (the new carry; a zero carry when memoryless), which is what
+    TD targets need.
+
+    The loop is fully unrolled for the short replay sequences (T <= 32): XLA then fuses across time
+    steps instead of paying a while-loop iteration (and its kernel launches) per step.
     """
     zero = jax.tree.map(jnp.zeros_like, carry)
 
@@ -105,10 +129,12 @@ def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = T
         else:
             c = zero
         new_c, out = actor.apply(params, c, obs)
-        return new_c, (c, out)
+        return new_c, (c, out, new_c if memory else zero)
 
-    final, (carries_in, outs) = jax.lax.scan(step, carry, (obs_seq, reset_seq))
-    return carries_in, outs, final
+    length = obs_seq.shape[0]
+    final, (carries_in, outs, after) = jax.lax.scan(step, carry, (obs_seq, reset_seq),
+                                                    unroll=length if 0 < length <= 32 else 1)
+    return carries_in, outs, final, after
 
 
 def _expand(flag, like):

@@ -47,7 +47,9 @@ def _mlp(p, x, layers):
 
 
 def _q(p, obs, act, i):
-    return _mlp(p["params"], np.concatenate([obs, act], -1), [f"q{i}_dense_0", f"q{i}_out"])[..., 0]
+    """Head i of the vmapped critic ensemble (parameters stacked on axis 0)."""
+    head = jax.tree.map(lambda x: x[i], p["params"]["q"])
+    return _mlp(head, np.concatenate([obs, act], -1), ["dense_0", "out"])[..., 0]
 
 
 def _perturbed(state):

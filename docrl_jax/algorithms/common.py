@@ -1,5 +1,6 @@
 """Pieces the TD3/DDPG and SAC agents share: the agent's state, the policy-delay schedule, soft
-target updates, masked means, and running the LSTM actor over sampled sequences with burn-in."""
+target updates, masked means, n-step TD targets inside sampled sequences, the learning-rate decay,
+and running the LSTM actor over sampled sequences with burn-in."""
 
 from __future__ import annotations
 
@@ -68,6 +69,7 @@ class SeqBatch(NamedTuple):
     reward: jax.Array
     next_obs: jax.Array
     terminated: jax.Array
+    truncated: jax.Array
     mask: jax.Array
     carry: Any               # stored carry at the first step of each sequence ([B, ...])
 
@@ -79,7 +81,8 @@ def split_batch(batch: dict, burn_in: int) -> SeqBatch:
     t = slice(burn_in, None)
     return SeqBatch(burn_obs=tm["obs"][b], burn_start=tm["start"][b], obs=tm["obs"][t], start=tm["start"][t],
                     action=tm["action"][t], reward=tm["reward"][t], next_obs=tm["next_obs"][t],
-                    terminated=tm["terminated"][t], mask=tm["mask"][t], carry=carry0)
+                    terminated=tm["terminated"][t], truncated=tm["truncated"][t], mask=tm["mask"][t],
+                    carry=carry0)
 
 
 def run_actor(actor, params, seq: SeqBatch, memory: bool):
@@ -88,25 +91,51 @@ def run_actor(actor, params, seq: SeqBatch, memory: bool):
     the carry with which the actor reads that step's next obs, for the TD target."""
     carry = seq.carry
     if seq.burn_obs.shape[0] > 0:
-        _, _, carry = unroll(actor, jax.lax.stop_gradient(params), carry, seq.burn_obs, seq.burn_start, memory)
+        _, _, carry, _ = unroll(actor, jax.lax.stop_gradient(params), carry, seq.burn_obs, seq.burn_start, memory)
         carry = jax.lax.stop_gradient(carry)
-    _, outs, _, carries_out = _unroll_with_out(actor, params, carry, seq.obs, seq.start, memory)
-    return outs, carries_out
+    _, outs, _, carries_after = unroll(actor, params, carry, seq.obs, seq.start, memory)
+    return outs, carries_after
 
 
-def _unroll_with_out(actor, params, carry, obs, start, memory):
-    zero = jax.tree.map(jnp.zeros_like, carry)
+def nstep_targets(reward, terminated, truncated, bootstrap, gamma: float, n: int):
+    """n-step TD targets inside one sampled window of trained steps (time on axis 0, [T, B]).
 
-    def step(c, xs):
-        o, s = xs
-        c = jax.tree.map(lambda z, v: jnp.where(s.reshape(s.shape + (1,) * (v.ndim - s.ndim)), z, v), zero, c) \
-            if memory else zero
-        new_c, out = actor.apply(params, c, o)
-        after = new_c if memory else zero  # a memoryless actor reads the next obs from a zero carry too
-        return new_c, (c, out, after)
+    bootstrap[t] is the value of step t's next obs (min of the target critics at the next action,
+    SAC's entropy term included). For each t the return sums the rewards of steps t .. t+m-1 and
+    bootstraps from step t+m-1's next obs, where m = min(n, steps left in the window, steps until the
+    episode ends): a terminated step ends the sum with no bootstrap, a truncated one ends it and
+    bootstraps from its true final obs. So no return crosses an episode boundary or the window end
+    (the last steps of a window use fewer than n rewards), and n = 1 is the one-step target
+        y_t = r_t + gamma (1 - terminated_t) bootstrap_t.
+    The rewards come from the behaviour policy, uncorrected, as in D4PG, R2D2 and FastTD3."""
+    not_term = 1.0 - terminated.astype(jnp.float32)
+    if n == 1:
+        return reward + gamma * not_term * bootstrap
+    T = reward.shape[0]
+    done = terminated | truncated
+    t_index = jnp.arange(T).reshape((T,) + (1,) * (reward.ndim - 1))
 
-    final, (cin, outs, after) = jax.lax.scan(step, carry, (obs, start))
-    return cin, outs, final, after
+    def shift(x, k):  # x[t + k], padded past the window's end (those entries are never used)
+        return jnp.concatenate([x[k:], jnp.zeros((k,) + x.shape[1:], x.dtype)]) if k else x
+
+    target = jnp.zeros_like(reward)
+    partial = jnp.zeros_like(reward)
+    running = jnp.ones(reward.shape, bool)
+    for k in range(n):
+        valid = running & (t_index + k < T)
+        partial = partial + jnp.where(valid, gamma ** k * shift(reward, k), 0.0)
+        stop = valid & (shift(done, k) | (k == n - 1) | (t_index + k == T - 1))
+        boot = gamma ** (k + 1) * shift(not_term, k) * shift(bootstrap, k)
+        target = target + jnp.where(stop, partial + boot, 0.0)
+        running = valid & ~stop
+    return target
+
+
+def lr_scale(end_scale: float, progress: jax.Array) -> jax.Array:
+    """Learning-rate multiplier: 1 at the start of training, falling linearly in env-step progress to
+    `end_scale` at the end (1 = constant, the paper's). A decayed rate lets the final policy settle
+    instead of swinging between consecutive evaluations."""
+    return 1.0 + (end_scale - 1.0) * jnp.clip(progress, 0.0, 1.0)
 
 
 def adam(lr: float) -> optax.GradientTransformation:
@@ -125,7 +154,15 @@ def init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_t
                       alpha_opt=alpha_tx.init(log_alpha), updates=jnp.zeros((), jnp.int32))
 
 
-def apply_gradients(tx: optax.GradientTransformation, grads, opt_state, params):
-    """One optimiser step: (new params, new optimiser state)."""
+def apply_gradients(tx: optax.GradientTransformation, grads, opt_state, params, scale=1.0):
+    """One optimiser step: (new params, new optimiser state). `scale` multiplies the step, which for
+    Adam is exactly a learning rate times `scale` (the decay of `lr_scale`) with the same state."""
     updates, opt_state = tx.update(grads, opt_state, params)
+    updates = jax.tree.map(lambda u: u * scale, updates)
     return optax.apply_updates(params, updates), opt_state
+
+
+def critic_regression(q: jax.Array, target: jax.Array, mask: jax.Array) -> jax.Array:
+    """sum over critic heads of the masked mean squared TD error; q [num, T, B], target [T, B]."""
+    m = mask.astype(q.dtype)
+    return jnp.sum((q - target[None]) ** 2 * m[None]) / jnp.maximum(jnp.sum(m), 1.0)

@@ -4,6 +4,7 @@ learned temperature alpha (orig: log alpha from 0, target entropy -3).
 Per gradient update, on a batch of sequences (see `common.split_batch`):
   target   a' ~ pi(.|s') (online actor; SAC has no target actor), with log-prob logp'
            y  = r + gamma * (1 - terminated) * (min_i Q'_i(s', a') - alpha * logp')
+           (with agent.n_step > 1, the n-step return of `common.nstep_targets` of that bootstrap)
   critics  sum_i mean_mask (Q_i(s, a) - y)^2
   actor    every policy_freq critic updates: mean_mask(alpha * logp(a|s) - min_i Q_i(s, a)), a ~ pi(.|s)
   alpha    same steps: -mean_mask(log_alpha * (logp + target_entropy)); then soft critic targets.
@@ -18,8 +19,8 @@ import jax
 import jax.numpy as jnp
 
 from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, apply_gradients,
-                                         init_agent_state, masked_mean, policy_freq, run_actor, soft_update,
-                                         split_batch)
+                                         critic_regression, init_agent_state, lr_scale, masked_mean,
+                                         nstep_targets, policy_freq, run_actor, soft_update, split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import Critic, make_actor
@@ -41,10 +42,10 @@ def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, 
     _, (mean, log_std) = actor.apply(state.actor, carries_after, seq.next_obs)
     next_a, next_logp = sample_action(mean, log_std, eps)
     q_next = jnp.min(critic.apply(state.critic_target, seq.next_obs, next_a), axis=0) - alpha * next_logp
-    y = jax.lax.stop_gradient(seq.reward + a_cfg.gamma * (1.0 - seq.terminated.astype(jnp.float32)) * q_next)
+    y = jax.lax.stop_gradient(nstep_targets(seq.reward, seq.terminated, seq.truncated, q_next, a_cfg.gamma,
+                                            a_cfg.n_step))
     q = critic.apply(critic_params, seq.obs, seq.action)
-    loss = sum(masked_mean((q[i] - y) ** 2, seq.mask) for i in range(q.shape[0]))
-    return loss, {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
+    return critic_regression(q, y, seq.mask), {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
 
 
 def actor_loss(actor_params, actor, critic, critic_params, log_alpha, seq: SeqBatch, eps, memory):
@@ -61,7 +62,7 @@ def alpha_loss(log_alpha, logp, target_entropy, mask):
 def make_sac(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.memory and config.agent.actor == "lstm"
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=True)
-    critic = Critic(hidden=a_cfg.critic_hidden, num=2)
+    critic = Critic(hidden=a_cfg.critic_hidden, num=2, layer_norm=a_cfg.critic_layer_norm)
     actor_tx, critic_tx, alpha_tx = adam(a_cfg.actor_lr), adam(a_cfg.critic_lr), adam(a_cfg.alpha_lr)
     burn_in = config.replay.burn_in
 
@@ -87,15 +88,16 @@ def make_sac(config: Config) -> Agent:
         k_next, k_pi = jax.random.split(key)
         eps_next = jax.random.normal(k_next, seq.action.shape)
         eps_pi = jax.random.normal(k_pi, seq.action.shape)
+        scale = lr_scale(a_cfg.lr_end_scale, progress)
         (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
             state.critic, critic, actor, state, seq, eps_next, a_cfg, memory)
-        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic)
+        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic, scale)
         state = state.replace(critic=critic_params, critic_opt=critic_opt, updates=state.updates + 1)
 
         def policy_step(s: AgentState):
             (a_loss, logp), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
                 s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, memory)
-            actor_params, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor)
+            actor_params, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale)
             al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, a_cfg.target_entropy, seq.mask)
             log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha)
             s = s.replace(actor=actor_params, actor_opt=actor_opt, log_alpha=log_alpha, alpha_opt=alpha_opt,

@@ -4,6 +4,7 @@ the paper's "Det." row: one critic, no target smoothing, actor updated on every 
 Per gradient update, on a batch of sequences (see `common.split_batch`):
   target   a' = clip(pi'(s') + clip(N(0, policy_noise), -noise_clip, noise_clip), -1, 1)
            y  = r + gamma * (1 - terminated) * min_i Q'_i(s', a')      (truncated steps bootstrap)
+           (with agent.n_step > 1, the n-step return of `common.nstep_targets`)
   critics  sum_i mean_mask (Q_i(s, a) - y)^2                          (paper: MSE; orig: Huber)
   actor    every policy_freq critic updates: -mean_mask Q_1(s, pi(s)), then soft updates of the
            target actor and critics with tau (paper: inside the delayed branch).
@@ -17,28 +18,26 @@ import jax
 import jax.numpy as jnp
 
 from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, apply_gradients,
-                                         init_agent_state, masked_mean, policy_freq, run_actor, soft_update,
-                                         split_batch)
+                                         critic_regression, init_agent_state, lr_scale, masked_mean,
+                                         nstep_targets, policy_freq, run_actor, soft_update, split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import Critic, make_actor
 
 
-def target_values(critic, critic_target_params, next_action, next_obs, reward, terminated, noise, a_cfg):
-    """TD targets y from the target actor's raw next action and a standard-normal `noise` sample."""
+def target_values(critic, critic_target_params, next_action, seq: SeqBatch, noise, a_cfg):
+    """TD targets y [T, B] from the target actor's raw next actions and a standard-normal `noise` sample."""
     smooth = jnp.clip(a_cfg.policy_noise * noise, -a_cfg.noise_clip, a_cfg.noise_clip)
     next_action = jnp.clip(next_action + smooth, -1.0, 1.0)
-    q_next = jnp.min(critic.apply(critic_target_params, next_obs, next_action), axis=0)
-    return reward + a_cfg.gamma * (1.0 - terminated.astype(jnp.float32)) * q_next
+    q_next = jnp.min(critic.apply(critic_target_params, seq.next_obs, next_action), axis=0)
+    return nstep_targets(seq.reward, seq.terminated, seq.truncated, q_next, a_cfg.gamma, a_cfg.n_step)
 
 
 def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, noise, a_cfg, memory):
     next_raw, _ = _target_next_action(actor, state.actor_target, seq, memory)
-    y = jax.lax.stop_gradient(target_values(critic, state.critic_target, next_raw, seq.next_obs, seq.reward,
-                                            seq.terminated, noise, a_cfg))
+    y = jax.lax.stop_gradient(target_values(critic, state.critic_target, next_raw, seq, noise, a_cfg))
     q = critic.apply(critic_params, seq.obs, seq.action)                     # [num, T, B]
-    loss = sum(masked_mean((q[i] - y) ** 2, seq.mask) for i in range(q.shape[0]))
-    return loss, {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
+    return critic_regression(q, y, seq.mask), {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
 
 
 def _target_next_action(actor, params, seq: SeqBatch, memory):
@@ -56,7 +55,7 @@ def make_td3(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.memory and config.agent.actor == "lstm"
     ddpg = a_cfg.algo == "ddpg"
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=False)
-    critic = Critic(hidden=a_cfg.critic_hidden, num=1 if ddpg else 2)
+    critic = Critic(hidden=a_cfg.critic_hidden, num=1 if ddpg else 2, layer_norm=a_cfg.critic_layer_norm)
     actor_tx, critic_tx = adam(a_cfg.actor_lr), adam(a_cfg.critic_lr)
     burn_in = config.replay.burn_in
 
@@ -80,14 +79,15 @@ def make_td3(config: Config) -> Agent:
     def update(state: AgentState, batch: dict, key, progress):
         seq = split_batch(batch, burn_in)
         noise = jax.random.normal(key, seq.action.shape) if not ddpg else jnp.zeros(seq.action.shape)
+        scale = lr_scale(a_cfg.lr_end_scale, progress)
         (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
             state.critic, critic, actor, state, seq, noise, a_cfg, memory)
-        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic)
+        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic, scale)
         state = state.replace(critic=critic_params, critic_opt=critic_opt, updates=state.updates + 1)
 
         def policy_step(s: AgentState):
             a_loss, a_grads = jax.value_and_grad(actor_loss)(s.actor, actor, critic, s.critic, seq, memory)
-            new_actor, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor)
+            new_actor, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale)
             s = s.replace(actor=new_actor, actor_opt=actor_opt,
                           actor_target=soft_update(s.actor_target, new_actor, a_cfg.tau),
                           critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
