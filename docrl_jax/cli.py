@@ -3,6 +3,7 @@ evaluates and checkpoints. See `docrl_jax.train` for what one chunk does.
 
     python -m docrl_jax.train --config td3_lstm [--set section.key=value ...] [--run-dir DIR]
     python -m docrl_jax.train --run-dir DIR --resume [--set train.total_env_steps=...]
+    srun ... python -m docrl_jax.train --distributed --config ... --run-dir SHARED_DIR   (docs/TRAINER.md)
 
 Exit codes: 0 done, 2 bad config or run directory, 3 non-finite loss, 130 interrupted (checkpoint saved).
 """
