@@ -64,7 +64,7 @@ def initialize_distributed(environ: Mapping[str, str] = os.environ) -> None:
                 kwargs[arg] = int(environ[name])
             except ValueError:
                 raise ConfigError(f"{name}={environ[name]!r}: must be an integer") from None
-    if jax.config.jax_cpu_collectives_implementation is None:  # all-gathers between CPU processes
+    if getattr(jax.config, "jax_cpu_collectives_implementation", "gloo") is None:  # CPU processes' all-gathers
         jax.config.update("jax_cpu_collectives_implementation", "gloo")
     try:
         jax.distributed.initialize(**kwargs)

@@ -85,6 +85,14 @@ def test_distributed_is_requested_by_the_coordinator_and_process_count():
     assert not sharding.distributed_from_env({})
 
 
+def test_distributed_without_a_coordinator_is_a_clear_error(monkeypatch, capsys):
+    from docrl_jax import cli
+    for name in ("JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID", "SLURM_JOB_ID"):
+        monkeypatch.delenv(name, raising=False)
+    assert cli.main(["--distributed", "--config", "td3_lstm", "--run-dir", "x"]) == cli.EXIT_CONFIG
+    assert "set JAX_COORDINATOR_ADDRESS=host:port of process 0" in " ".join(capsys.readouterr().out.split())
+
+
 def _rows(run_dir: Path) -> list[dict]:
     with open(run_dir / "metrics.csv", newline="") as fh:
         return list(csv.DictReader(fh))
