@@ -150,7 +150,7 @@ def programs(config: Config):
     """(init, chunk, evaluate), jitted over the seed axis; the chunk donates its runner state.
     On one device they vmap over the seeds; on several (train.devices, docrl_jax.sharding) they
     take and return arrays sharded over the 'seed' mesh axis (`SeedPlacement.put_seeds`), each
-    device running the vmapped program on its own seeds. Raises ConfigError for bad train.devices."""
+    device running the same on its own seeds. Raises ConfigError for a bad train.devices."""
     # The programs do not depend on the name, the seed values (keys are arguments), the run length
     # (a runner-state field) or when to evaluate and checkpoint, so one compilation serves them all;
     # memoised so a resume in the same process compiles nothing.
@@ -164,7 +164,8 @@ def programs(config: Config):
 def _programs(config: Config, devices: tuple):
     trainer = make_trainer(config)
     if config.train.num_seeds // len(devices) > 1:
-        init, chunk, evaluate = jax.vmap(trainer.init_total, (0, None)), jax.vmap(trainer.chunk), jax.vmap(trainer.evaluate)
+        init, chunk, evaluate = (jax.vmap(trainer.init_total, (0, None)), jax.vmap(trainer.chunk),
+                                 jax.vmap(trainer.evaluate))
     else:
         # One seed (per device): run the unbatched program on the seed axis of size 1. Under vmap,
         # lax.cond with a per-seed predicate becomes a select that computes both branches, so the

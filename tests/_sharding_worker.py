@@ -101,7 +101,8 @@ def multi(out: Path) -> int:
 if __name__ == "__main__":
     mode, out = sys.argv[1], Path(sys.argv[2])
     count = {"single": 4, "multi": 2}[mode]
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={count} {XLA_FLAGS}"
+    os.environ["XLA_FLAGS"] = (f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={count} "
+                               f"{XLA_FLAGS}")
     if mode == "single":
         single(out)
         sys.exit(0)
