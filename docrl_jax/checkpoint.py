@@ -7,6 +7,11 @@
 
 Orbax cannot write zero-size arrays (MJX keeps a few), so a tree is stored as its non-empty leaves
 keyed by flat index and rebuilt from an abstract tree of the same structure on restore.
+
+Arrays are stored as global arrays, whatever devices held them: a run whose seeds were split over
+several devices or processes (docrl_jax.sharding) writes one checkpoint (every process its shards,
+process 0 the metadata; `save` is collective), and `restore` places it onto the devices asked for
+now: one device by default, or a seed-axis sharding over any number of devices.
 """
 
 from __future__ import annotations
@@ -26,10 +31,10 @@ def _pack(tree: Any) -> dict[str, Any]:
     return {f"{i:05d}": leaf for i, leaf in enumerate(jax.tree.leaves(tree)) if leaf.size}
 
 
-def _abstract_packed(abstract_tree: Any) -> dict[str, Any]:
-    # An explicit single-device sharding makes Orbax restore onto this machine's device, whatever the
-    # topology the checkpoint was written on (a GPU run evaluated on a CPU, say).
-    sharding = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+def _abstract_packed(abstract_tree: Any, sharding: jax.sharding.Sharding | None) -> dict[str, Any]:
+    # An explicit sharding makes Orbax restore onto this machine's devices, whatever the topology the
+    # checkpoint was written on (a GPU run evaluated on a CPU, 8 GPUs resumed on 2, say).
+    sharding = sharding or jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
     return {f"{i:05d}": jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding)
             for i, leaf in enumerate(jax.tree.leaves(abstract_tree)) if _size(leaf.shape)}
 
@@ -41,8 +46,13 @@ def _size(shape) -> int:
     return n
 
 
-def _unpack(abstract_tree: Any, packed: dict[str, Any]) -> Any:
+def _unpack(abstract_tree: Any, packed: dict[str, Any], sharding: jax.sharding.Sharding | None = None) -> Any:
     leaves, treedef = jax.tree.flatten(abstract_tree)
+    if sharding is not None:  # global arrays as Orbax placed them; empty leaves placed the same way
+        empty = lambda leaf: jax.make_array_from_callback(  # noqa: E731
+            leaf.shape, sharding, lambda index: np.zeros(leaf.shape, leaf.dtype)[index])
+        return jax.tree.unflatten(treedef, [packed[f"{i:05d}"] if _size(leaf.shape) else empty(leaf)
+                                            for i, leaf in enumerate(leaves)])
     out = [packed[f"{i:05d}"] if _size(leaf.shape) else jnp.zeros(leaf.shape, leaf.dtype)
            for i, leaf in enumerate(leaves)]
     # Via numpy: orbax returns arrays *committed* to a device, while the trainer's own arrays are not,
@@ -70,14 +80,18 @@ def latest_step(run_dir: str | Path) -> int | None:
     return manager(run_dir).latest_step()
 
 
-def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, abstract_policy: Any = None):
-    """Restores (state, policy_params, meta); pass None for an item you do not need."""
+def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, abstract_policy: Any = None,
+            sharding: jax.sharding.Sharding | None = None):
+    """Restores (state, policy_params, meta); pass None for an item you do not need. With
+    `sharding` (the seed axis over several devices, `SeedPlacement.seed_sharding`) every leaf is
+    restored as a global array placed by it (collective over processes); without, as an
+    uncommitted array on this process's first device."""
     items = {"meta": ocp.args.JsonRestore()}
     if abstract_state is not None:
-        items["state"] = ocp.args.StandardRestore(_abstract_packed(abstract_state))
+        items["state"] = ocp.args.StandardRestore(_abstract_packed(abstract_state, sharding))
     if abstract_policy is not None:
-        items["policy"] = ocp.args.StandardRestore(_abstract_packed(abstract_policy))
+        items["policy"] = ocp.args.StandardRestore(_abstract_packed(abstract_policy, sharding))
     out = mngr.restore(step, args=ocp.args.Composite(**items))
-    state = _unpack(abstract_state, out["state"]) if abstract_state is not None else None
-    policy = _unpack(abstract_policy, out["policy"]) if abstract_policy is not None else None
+    state = _unpack(abstract_state, out["state"], sharding) if abstract_state is not None else None
+    policy = _unpack(abstract_policy, out["policy"], sharding) if abstract_policy is not None else None
     return state, policy, out["meta"]

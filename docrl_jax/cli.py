@@ -3,6 +3,7 @@ evaluates and checkpoints. See `docrl_jax.train` for what one chunk does.
 
     python -m docrl_jax.train --config td3_lstm [--set section.key=value ...] [--run-dir DIR]
     python -m docrl_jax.train --run-dir DIR --resume [--set train.total_env_steps=...]
+    srun ... python -m docrl_jax.train --distributed --config ... --run-dir SHARED_DIR   (docs/TRAINER.md)
 
 Exit codes: 0 done, 2 bad config or run directory, 3 non-finite loss, 130 interrupted (checkpoint saved).
 
@@ -36,7 +37,9 @@ from rich.text import Text
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.syntax import Syntax
 
-from docrl_jax import checkpoint
+from jax.sharding import NamedSharding, PartitionSpec
+
+from docrl_jax import checkpoint, sharding
 from docrl_jax.config import Config, ConfigError, load_config, to_yaml
 from docrl_jax.policy import RunDirError
 from docrl_jax.run_dir import CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, TB_DIR, read_config
@@ -58,6 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--compile-cache", default=None, metavar="DIR|off",
                    help="JAX persistent compilation cache folder (default $DOCRL_JAX_COMPILE_CACHE, else "
                         "~/.cache/docrl_jax/jax); 'off' disables it")
+    p.add_argument("--distributed", action="store_true",
+                   help="one of several processes (hosts, or one per GPU): jax.distributed.initialize() from "
+                        "JAX_COORDINATOR_ADDRESS/JAX_NUM_PROCESSES/JAX_PROCESS_ID or the cluster (SLURM srun, "
+                        "Open MPI); implied when JAX_COORDINATOR_ADDRESS and JAX_NUM_PROCESSES are set. "
+                        "Seeds are split over every process's devices; process 0 writes the outputs")
     return p
 
 
@@ -98,6 +106,13 @@ def main(argv: list[str] | None = None) -> int:
     console = Console()
     notes: list[str] = []
     try:
+        if args.distributed or sharding.distributed_from_env():
+            sharding.initialize_distributed()  # before anything touches a device
+            if not sharding.is_primary():
+                console = Console(quiet=True)
+            if not args.run_dir:
+                raise RunDirError("a multi-process run needs --run-dir: one directory every process can reach "
+                                  "(a shared file system when the processes are on several hosts)")
         config, run_dir = _resolve(args, notes)
     except (ConfigError, RunDirError) as e:
         console.print(f"[bold red]error:[/] {e}")
@@ -181,41 +196,60 @@ def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
 
 
 def programs(config: Config):
-    """(init, chunk, evaluate), jitted and vmapped over seeds; the chunk donates its runner state."""
+    """(init, chunk, evaluate), jitted over the seed axis; the chunk donates its runner state.
+    On one device they vmap over the seeds; on several (train.devices, docrl_jax.sharding) they
+    take and return arrays sharded over the 'seed' mesh axis (`SeedPlacement.put_seeds`), each
+    device running the same on its own seeds. Raises ConfigError for a bad train.devices."""
     # The programs do not depend on the name, the seed values (keys are arguments), the run length
     # (a runner-state field) or when to evaluate and checkpoint, so one compilation serves them all;
     # memoised so a resume in the same process compiles nothing.
-    return _programs(_program_config(config))
+    devices, _ = sharding.seed_devices(config.train)
+    return _programs(_program_config(config), devices)
 
 
 def _program_config(config: Config) -> Config:
-    """The config with every field that does not shape the compiled programs set to a constant."""
+    """The config with every field that does not shape the compiled programs set to a constant
+    (train.devices too: the device tuple is passed beside it)."""
     train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
-                                keep_checkpoints=1)
+                                keep_checkpoints=1, devices=0)
     return dataclasses.replace(config, name="run", train=train)
 
 
 @functools.lru_cache(maxsize=8)
-def _programs(config: Config):
+def _programs(config: Config, devices: tuple):
     trainer = make_trainer(config)
-    if config.train.num_seeds > 1:
-        return (jax.jit(jax.vmap(trainer.init_total, (0, None))), jax.jit(jax.vmap(trainer.chunk), donate_argnums=0),
-                jax.jit(jax.vmap(trainer.evaluate)))
-    # One seed: run the unbatched program on the seed axis of size 1. Under vmap, lax.cond with a
-    # per-seed predicate becomes a select that computes both branches, so the delayed actor update
-    # and the pre-learning phase would cost a full update on every step.
-    squeeze = functools.partial(jax.tree.map, lambda x: x[0])
-    expand = functools.partial(jax.tree.map, lambda x: x[None])
-    return (jax.jit(lambda keys, total: expand(trainer.init_total(keys[0], total))),
-            jax.jit(lambda state: expand(trainer.chunk(squeeze(state))), donate_argnums=0),
-            jax.jit(lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))))
+    if config.train.num_seeds // len(devices) > 1:
+        init, chunk, evaluate = (jax.vmap(trainer.init_total, (0, None)), jax.vmap(trainer.chunk),
+                                 jax.vmap(trainer.evaluate))
+    else:
+        # One seed (per device): run the unbatched program on the seed axis of size 1. Under vmap,
+        # lax.cond with a per-seed predicate becomes a select that computes both branches, so the
+        # delayed actor update and the pre-learning phase would cost a full update on every step.
+        squeeze = functools.partial(jax.tree.map, lambda x: x[0])
+        expand = functools.partial(jax.tree.map, lambda x: x[None])
+        init = lambda keys, total: expand(trainer.init_total(keys[0], total))  # noqa: E731
+        chunk = lambda state: expand(trainer.chunk(squeeze(state)))  # noqa: E731
+        evaluate = lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))  # noqa: E731
+    if len(devices) == 1:
+        return jax.jit(init), jax.jit(chunk, donate_argnums=0), jax.jit(evaluate)
+    # Seeds over devices: shard_map gives each device its block of seeds and runs the function above
+    # on it alone (no communication); every output keeps the seed axis, sharded the same way.
+    mesh = sharding.SeedPlacement(devices).mesh
+    seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
+    split, replicated = NamedSharding(mesh, seeds), NamedSharding(mesh, whole)
+
+    def over_seeds(f, in_specs):
+        return jax.shard_map(f, mesh=mesh, in_specs=in_specs, out_specs=seeds, check_vma=False)
+    return (jax.jit(over_seeds(init, (seeds, whole)), in_shardings=(split, replicated), out_shardings=split),
+            jax.jit(over_seeds(chunk, (seeds,)), in_shardings=(split,), out_shardings=split, donate_argnums=0),
+            jax.jit(over_seeds(evaluate, (seeds, seeds)), in_shardings=(split, split), out_shardings=split))
 
 
 def compiled_programs(config: Config):
     """`programs(config)` compiled ahead of time, the three at once in threads (XLA compiles them in
     parallel, which shortens start-up), memoised like `programs`. Returns (init, chunk, evaluate,
     compile seconds of this call; 0 when memoised)."""
-    key = (_program_config(config),)
+    key = (_program_config(config), sharding.seed_devices(config.train)[0])
     if key in _COMPILED:
         return (*_COMPILED[key], 0.0)
     init, chunk, evaluate = programs(config)
@@ -243,26 +277,40 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     from tensorboardX import SummaryWriter
 
     launch_time = time.time() if launch_time is None else launch_time
-    console = console or Console(quiet=not show_progress)
+    # Several processes (docrl_jax.sharding) run this same loop in step; only process 0 writes files.
+    primary = sharding.is_primary()
+    console = console if console is not None and primary else Console(quiet=not (show_progress and primary))
+    try:
+        placement = sharding.seed_placement(config.train)
+    except ConfigError as e:
+        console.print(f"[bold red]error:[/] {e}")
+        return EXIT_CONFIG
+    if jax.process_count() > 1:  # every process has read the run directory before process 0 writes to it
+        from jax.experimental import multihost_utils
+        multihost_utils.sync_global_devices("docrl_jax.cli.run")
+    if placement.note:
+        console.print(f"[yellow]note:[/] {placement.note}")
     run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / CONFIG_FILE).write_text(to_yaml(config))
+    if primary:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / CONFIG_FILE).write_text(to_yaml(config))
     t_cfg = config.train
     trainer = make_trainer(config)
     seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
     console.print("compiling the training, evaluation and initialisation programs ...")
     init, chunk, evaluate, compile_s = compiled_programs(config)
     console.print(f"compiled in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)")
     startup = {"compile_s": round(compile_s, 2), "launch_to_compiled_s": round(time.time() - launch_time, 2)}
     mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
-    total = jnp.asarray(trainer.total_env_steps, jnp.int32)
+    total = placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32))
     metrics_path = run_dir / METRICS_FILE
 
     if resume:
         step = mngr.latest_step()
         try:
-            state, _, meta = checkpoint.restore(mngr, step, abstract_state=jax.eval_shape(init, keys, total))
+            state, _, meta = checkpoint.restore(mngr, step, abstract_state=jax.eval_shape(init, keys, total),
+                                                sharding=placement.seed_sharding)
         except Exception as e:
             console.print(f"[bold red]error:[/] cannot restore checkpoint {step} of {run_dir}: {type(e).__name__}: {e}")
             return EXIT_CONFIG
@@ -272,16 +320,19 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
                           f"train.log_every and env.num_envs cannot change on resume")
             return EXIT_CONFIG
         # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
-        state = state.replace(total_steps=jnp.full_like(state.total_steps, trainer.total_env_steps))
-        _truncate_csv(metrics_path, step)
+        state = state.replace(total_steps=placement.put_seeds(
+            np.full(state.total_steps.shape, trainer.total_env_steps, np.int32)))
+        if primary:
+            _truncate_csv(metrics_path, step)
         console.print(f"resumed from env step {step} (chunk {done_chunks}/{trainer.num_chunks})")
     else:
         state = init(keys, total)
         done_chunks, wall_before, pending = 0, 0.0, _empty_pending(len(seeds))
-        with open(metrics_path, "w", newline="") as fh:
-            csv.writer(fh).writerow(METRIC_COLUMNS)
+        if primary:
+            with open(metrics_path, "w", newline="") as fh:
+                csv.writer(fh).writerow(METRIC_COLUMNS)
     env_steps = done_chunks * trainer.steps_per_chunk
-    writer = SummaryWriter(str(run_dir / TB_DIR), purge_step=env_steps if resume else None)
+    writer = SummaryWriter(str(run_dir / TB_DIR), purge_step=env_steps if resume else None) if primary else _NoWriter()
 
     def wall() -> float:
         return wall_before + time.time() - launch_time
@@ -294,7 +345,8 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
 
     def do_eval(steps: int):
         nonlocal pending
-        ev = jax.device_get(evaluate(state.agent.actor, eval_keys(seeds, steps)))
+        ev = placement.get(evaluate(state.agent.actor, placement.put_seeds(np.asarray(eval_keys(seeds, steps)))))
+        updates = placement.get(state.agent.updates)
         rows = []
         for i, seed in enumerate(seeds):
             p = {k: v[i] for k, v in pending.items()}
@@ -312,12 +364,13 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
                    "alpha": p["alpha"] / learn if learn and config.agent.algo == "sac" else math.nan,
                    "q": p["q"] / learn if learn else math.nan,
                    "policy_freq": p["policy_freq"] / learn if learn else math.nan,
-                   "grad_updates": int(state.agent.updates[i])}
+                   "grad_updates": int(updates[i])}
             rows.append(row)
-        with open(metrics_path, "a", newline="") as fh:
-            w = csv.DictWriter(fh, METRIC_COLUMNS)
-            for row in rows:
-                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+        if primary:
+            with open(metrics_path, "a", newline="") as fh:
+                w = csv.DictWriter(fh, METRIC_COLUMNS)
+                for row in rows:
+                    w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
         for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air"):
             if k in ev:
                 writer.add_scalar(f"eval/{k}", float(np.mean(ev[k])), steps)
@@ -340,7 +393,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         while done_chunks < trainer.num_chunks:
             t0 = time.time()
             state, m = chunk(state)
-            m = jax.device_get(m)
+            m = placement.get(m)
             dt = time.time() - t0
             bad = np.asarray(m["nonfinite_iter"])
             if np.any(bad >= 0):
@@ -357,14 +410,16 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
             if chunks_this_call == 1:  # start-up as a user sees it: launch to the first trained chunk
                 startup.update(launch_to_first_chunk_s=round(time.time() - launch_time, 2),
                                first_chunk_s=round(dt, 2), device=device_line())
-                (run_dir / STARTUP_FILE).write_text(json.dumps(startup, indent=1))
+                if primary:
+                    (run_dir / STARTUP_FILE).write_text(json.dumps(startup, indent=1))
             prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
             _accumulate(pending, m)
             _log_chunk(writer, m, env_steps, trainer.steps_per_chunk * len(seeds) / dt)
             final = done_chunks == trainer.num_chunks
             if final or env_steps // t_cfg.eval_every > prev // t_cfg.eval_every:
                 last_eval = _seed_mean(do_eval(env_steps))
-            stop = interrupt.requested or (stop_after_chunks is not None and chunks_this_call >= stop_after_chunks)
+            stop = placement.any_process(interrupt.requested) or (stop_after_chunks is not None and
+                                                                  chunks_this_call >= stop_after_chunks)
             if final or stop or env_steps // t_cfg.checkpoint_every > prev // t_cfg.checkpoint_every:
                 save(env_steps)
             progress.update(task, completed=env_steps, sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s")
@@ -381,6 +436,16 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     if status == EXIT_OK:
         console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")
     return status
+
+
+class _NoWriter:
+    """TensorBoard writer of the processes other than 0."""
+
+    def add_scalar(self, *args, **kwargs):
+        pass
+
+    def close(self):
+        pass
 
 
 def _seed_mean(rows: list[dict]) -> dict:

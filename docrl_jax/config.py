@@ -111,7 +111,14 @@ class TrainConfig:
     total_env_steps: int = _f(2_000_000, "Environment steps per seed, all envs together (paper: up to 1500 "
                                          "episodes of 500 steps = 750k). Rounded up to whole chunks.")
     seed: int = _f(0, "Seed of the first run; seed index i uses seed + i.")
-    num_seeds: int = _f(1, "Independent seeds trained in one program with vmap.")
+    num_seeds: int = _f(1, "Independent seeds trained in one program: vmapped on each device, and split over "
+                           "the devices of train.devices along a 'seed' mesh axis.")
+    devices: int = _f(0, "Devices the seeds are split over (docrl_jax/sharding.py). 0 or 'all' = every device "
+                         "of every process (jax.devices()), or the largest count that divides num_seeds if "
+                         "they do not (a note says so); N = the first N devices, which must divide num_seeds. "
+                         "Each device trains num_seeds / devices seeds (vmapped; one seed per device runs the "
+                         "faster unbatched program). Multi-process runs (--distributed) use 0. May change on "
+                         "--resume: checkpoints are resharded onto the current devices.")
     start_steps: int = _f(10_000, "Env steps (all envs together) of uniform random actions before the actor "
                                   "acts and updates start (paper names start_steps without a value; orig "
                                   "waited for 1,024 transitions).")
@@ -305,6 +312,11 @@ def _coerce(key: str, value: Any, typ: Any, choices: tuple | None) -> Any:
         if not isinstance(value, bool):
             raise ConfigError(f"{key}={value!r}: must be a bool (true or false)")
     elif typ is int:
+        if key == "train.devices":
+            if value == "all":
+                value = 0
+            elif isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ConfigError(f"{key}={value!r}: must be 'all' (or 0: every device) or a device count >= 1")
         if isinstance(value, bool) or not isinstance(value, int):
             if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
                 value = int(value)  # 1e6 written as 1.0e+6
@@ -361,6 +373,8 @@ def validate(c: Config) -> Config:
                            ("replay.burn_in", r.burn_in, 0), ("agent.n_step", a.n_step, 1)]:
         if value < lo:
             _bad(key, value, f"must be >= {lo}")
+    if t.devices < 0:
+        _bad("train.devices", t.devices, "must be 'all' (or 0: every device) or a device count >= 1")
     if not 0 <= t.seed < 2**31 - t.num_seeds:
         _bad("train.seed", t.seed, "must be in [0, 2**31 - num_seeds)")
     if r.burn_in >= r.seq_len:
@@ -431,7 +445,7 @@ def replay_bytes(c: Config) -> int:
 def available_device_bytes() -> tuple[int | None, str]:
     """Free memory of the default device: GPU/TPU from `memory_stats()`, CPU from MemAvailable."""
     import jax
-    dev = jax.devices()[0]
+    dev = jax.local_devices()[0]  # this process's (in a multi-process run jax.devices()[0] may not be)
     if dev.platform != "cpu":
         stats = dev.memory_stats() or {}
         if "bytes_limit" in stats:
@@ -448,13 +462,24 @@ def available_device_bytes() -> tuple[int | None, str]:
 
 
 def check_replay_memory(c: Config) -> None:
-    need = replay_bytes(c)
+    """The replay buffers of the seeds one device holds (train.devices splits them; host-platform
+    devices share this process's RAM) must fit its free memory. Also resolves train.devices, so an
+    impossible device count is refused here (ConfigError)."""
+    import jax
+    from docrl_jax.sharding import seed_devices
+    devices, _ = seed_devices(c.train)
+    sharing = len(devices) // jax.process_count() if devices[0].platform == "cpu" else 1
+    seeds = c.train.num_seeds // len(devices) * sharing
+    need = replay_bytes(c) // c.train.num_seeds * seeds
     free, what = available_device_bytes()
     if free is not None and need > free:
+        held = f"num_seeds={c.train.num_seeds}" if seeds == c.train.num_seeds else \
+            f"{seeds} of num_seeds={c.train.num_seeds} over {len(devices)} devices"
         raise ConfigError(
-            f"replay buffers need {need / 2**30:.2f} GiB (num_seeds={c.train.num_seeds} x buffer_size="
-            f"{c.replay.buffer_size} steps x {need // max(1, c.train.num_seeds * c.replay.buffer_size)} bytes), "
-            f"more than the {free / 2**30:.2f} GiB of {what}; lower replay.buffer_size or train.num_seeds")
+            f"replay buffers need {need / 2**30:.2f} GiB ({held} x buffer_size="
+            f"{c.replay.buffer_size} steps x {need // max(1, seeds * c.replay.buffer_size)} bytes), "
+            f"more than the {free / 2**30:.2f} GiB of {what}; lower replay.buffer_size or train.num_seeds, "
+            f"or split the seeds over more devices (train.devices)")
 
 
 # ---------------------------------------------------------------------------------------- output

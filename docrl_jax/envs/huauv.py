@@ -70,7 +70,10 @@ class HUAUVEnv:
         self.params = params
         self.mj_model = mujoco.MjModel.from_xml_path(_scene_path(params.scenario))
         self.mj_model.opt.timestep = params.physics_dt
-        self.mjx_model = mjx.put_model(self.mj_model)
+        # This process's first device: MJX's default, jax.devices()[0], belongs to process 0 in a
+        # multi-process run (docrl_jax.sharding); on one process the two are the same.
+        device = jax.local_devices()[0]
+        self.mjx_model = mjx.put_model(self.mj_model, device=device)
         self.body_id = self.mj_model.body("huauv").id
         self.vehicle = physics.make_vehicle(self.mj_model.body_mass[self.body_id],
                                             self.mj_model.body_inertia[self.body_id],
@@ -78,7 +81,7 @@ class HUAUVEnv:
         self.solids = geometry.solids_from_model(self.mj_model)
         self.obstacles = geometry.solids_from_model(self.mj_model, include_walls=False)
         # Template with the static geoms placed (rays read their poses from Data).
-        self._data0 = jax.jit(mjx.forward)(self.mjx_model, mjx.make_data(self.mjx_model))
+        self._data0 = jax.jit(mjx.forward)(self.mjx_model, mjx.make_data(self.mjx_model, device=device))
         self._wind_every = max(1, int(round(params.wind_period / params.control_dt)))
         self._unroll = params.substep_unroll or (1 if jax.default_backend() == "cpu" else 5)
 

@@ -1,0 +1,129 @@
+"""Seeds over devices: seed env steps/s and seed gradient updates/s on 1 device vs all local devices,
+at the same seeds per device (docrl_jax.sharding; the programs of docrl_jax.cli.programs).
+
+    python benchmarks/seed_scaling.py                                   # td3_lstm, 1 and 2 seeds per GPU
+    python benchmarks/seed_scaling.py --configs td3_lstm sac_lstm --num-envs 4096 --seeds-per-device 1 4
+    python benchmarks/seed_scaling.py --smoke                           # CPU, 4 forced host devices, tiny
+
+For each config, num_envs and seeds per device k, and each device count D in {1, all}: the run
+trains k x D seeds over D devices (one seed per device runs the unbatched program, more are
+vmapped). Compile one chunk (timed separately), run one warm-up chunk (fills the replay past
+start_steps = 0 and seq_len, so every timed iteration learns), then time --repeats chunks; the
+median gives
+    seed env steps/s = env steps of all seeds per second (num_envs x iterations x seeds / time),
+    seed updates/s   = gradient updates of all seeds per second,
+and `efficiency` = (seed env steps/s on D devices) / (D x that on 1 device). Peak memory is the
+largest over the devices used. Writes seed_scaling.json / .md (seed_scaling_smoke.* with --smoke)
+into --out (default benchmarks/results/).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+SMOKE_DEVICES = 4
+SMOKE_SETS = ["env.max_episode_steps=20", "agent.actor_hidden=[8]", "agent.critic_hidden=[16,16]",
+              "replay.batch_size=8", "replay.seq_len=4", "replay.burn_in=2", "train.eval_episodes=2"]
+
+
+def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters: int, repeats: int,
+            sets: list[str]) -> dict:
+    import jax
+    import numpy as np
+
+    from docrl_jax import cli, sharding
+    from docrl_jax.config import load_config
+    from docrl_jax.train import make_trainer
+
+    num_seeds = seeds_per_device * devices
+    overrides = [f"env.num_envs={num_envs}", f"train.log_every={num_envs * iters}", "train.start_steps=0",
+                 f"train.num_seeds={num_seeds}", f"train.devices={devices}",
+                 f"replay.buffer_size={max(50_000, 128 * num_envs)}", *sets]
+    config = load_config(name, overrides)
+    trainer = make_trainer(config)
+    placement = sharding.seed_placement(config.train)
+    init, chunk, _ = cli.programs(config)
+    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in range(num_seeds)]))
+    state = init(keys, placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32)))
+    jax.block_until_ready(state)
+    t0 = time.perf_counter()
+    compiled = chunk.lower(state).compile()
+    compile_s = time.perf_counter() - t0
+    state, m = compiled(state)  # warm-up: fills the buffer so that every later iteration learns
+    jax.block_until_ready(m)
+    times, learn = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        state, m = compiled(state)
+        jax.block_until_ready(m)
+        times.append(time.perf_counter() - t0)
+        learn.append(int(np.min(placement.get(m["learn_iters"]))))
+    med = statistics.median(times)
+    peak = [(d.memory_stats() or {}).get("peak_bytes_in_use", 0) for d in placement.devices]
+    upd = config.train.updates_per_step
+    return {"config": name, "algo": config.agent.algo, "num_envs": num_envs, "seeds_per_device": seeds_per_device,
+            "devices": devices, "num_seeds": num_seeds, "iters_per_chunk": trainer.iters_per_chunk,
+            "updates_per_step": upd, "compile_s": round(compile_s, 2), "chunk_s_median": round(med, 4),
+            "chunk_s_all": [round(t, 4) for t in times], "learning_iters_per_chunk": learn,
+            "seed_env_steps_per_s": round(trainer.steps_per_chunk * num_seeds / med),
+            "seed_updates_per_s": round(trainer.iters_per_chunk * upd * num_seeds / med, 1),
+            "peak_memory_gib_per_device": round(max(peak) / 2**30, 3) if any(peak) else None,
+            "device_kind": placement.devices[0].device_kind, "overrides": overrides}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--configs", nargs="+", default=["td3_lstm"])
+    ap.add_argument("--num-envs", type=int, nargs="+", default=[1024])
+    ap.add_argument("--seeds-per-device", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--iters", type=int, default=50, help="iterations per timed chunk")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--set", action="append", default=[], help="extra config overrides section.key=value")
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
+    ap.add_argument("--smoke", action="store_true",
+                    help=f"CPU check of the script: {SMOKE_DEVICES} forced host devices, num_envs 4, tiny networks, "
+                         f"--iters 4 --repeats 2 (numbers mean nothing)")
+    args = ap.parse_args(argv)
+    if args.smoke:
+        # Must precede JAX's initialisation (nothing above imports it).
+        os.environ["XLA_FLAGS"] = (f"{os.environ.get('XLA_FLAGS', '')} "
+                                   f"--xla_force_host_platform_device_count={SMOKE_DEVICES}")
+        os.environ["JAX_PLATFORMS"] = "cpu"
+        args.num_envs, args.iters, args.repeats, args.set = [4], 4, 2, SMOKE_SETS + args.set
+    import jax
+
+    from common import run_meta, write_results
+    available = len(jax.local_devices())
+    counts = [1] if available == 1 else [1, available]
+    meta = {**run_meta(), "local_devices": [str(d) for d in jax.local_devices()]}
+    print(json.dumps(meta), flush=True)
+    columns = [("config", "config"), ("num_envs", "num_envs"), ("seeds/device", "seeds_per_device"),
+               ("devices", "devices"), ("seeds", "num_seeds"), ("compile (s)", "compile_s"),
+               ("seed env steps/s", "seed_env_steps_per_s"), ("seed updates/s", "seed_updates_per_s"),
+               ("efficiency", "efficiency"), ("peak mem/device (GiB)", "peak_memory_gib_per_device")]
+    stem = "seed_scaling_smoke" if args.smoke else "seed_scaling"
+    rows, table = [], ""
+    for name in args.configs:
+        for n in args.num_envs:
+            for k in args.seeds_per_device:
+                base = None
+                for d in counts:
+                    row = measure(name, n, k, d, args.iters, args.repeats, args.set)
+                    base = base or row["seed_env_steps_per_s"]
+                    row["efficiency"] = round(row["seed_env_steps_per_s"] / (d * base), 3)
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
+                    table = write_results(args.out, stem, "Seeds over devices", meta, rows, columns)
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,109 @@
+"""Run by tests/test_sharding.py in subprocesses, since XLA's forced host devices (and
+jax.distributed) must be set up before JAX starts.
+
+    python tests/_sharding_worker.py single OUT    one process, 4 CPU devices: runs under OUT/
+    python tests/_sharding_worker.py multi OUT     one of 2 processes (JAX_COORDINATOR_ADDRESS,
+                                                   JAX_NUM_PROCESSES, JAX_PROCESS_ID set), 2 devices each
+
+Every run trains the same 4 seeds of TINY. XLA's backend optimisation is off in these processes:
+it halves the compile time (the cost of these tests) and every run compared shares it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+from pathlib import Path
+
+TINY = {
+    "name": "tiny",
+    "env": {"scenario": 1, "num_envs": 4, "wind": False, "max_goal_distance": 2.0, "progress_reward_scale": 1.0,
+            "max_episode_steps": 20, "goal_water_fraction": 0.0, "start_water_fraction": 0.0},
+    "agent": {"algo": "td3", "actor": "lstm", "actor_hidden": [8], "critic_hidden": [16, 16], "tau": 0.01},
+    "replay": {"buffer_size": 400, "batch_size": 8, "seq_len": 4, "burn_in": 2},
+    # 3 chunks of 64 env steps; updates from step 32: 40 gradient updates per seed in all.
+    "train": {"total_env_steps": 192, "start_steps": 32, "updates_per_step": 1, "log_every": 64,
+              "eval_every": 128, "eval_episodes": 4, "checkpoint_every": 128, "num_seeds": 4},
+}
+XLA_FLAGS = "--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true"
+
+
+def tiny_config(**train):
+    from docrl_jax.config import config_from_dict
+    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in TINY.items()}
+    raw["train"].update(train)
+    return config_from_dict(raw)
+
+
+def single(out: Path) -> None:
+    """4 seeds on 4 devices and on 1, each interrupted after one chunk; then resumed on the same
+    device count (four/, one/) and on the other (four_then_one/, one_then_four/)."""
+    import jax
+    import numpy as np
+
+    from docrl_jax import cli, sharding
+    from docrl_jax.config import ConfigError
+    assert len(jax.devices()) == 4, jax.devices()
+
+    def go(name, devices, **kw):
+        return cli.run(tiny_config(devices=devices), out / name, show_progress=False, **kw)
+
+    for name, devices, other, other_devices in (("four", 4, "four_then_one", 1), ("one", 1, "one_then_four", "all")):
+        assert go(name, devices, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
+        shutil.copytree(out / name, out / other)
+        assert go(name, devices, resume=True) == cli.EXIT_OK
+        assert go(other, other_devices, resume=True) == cli.EXIT_OK
+
+    summary = {}
+    # Where the 4-device programs put the state (already compiled: cheap).
+    config = tiny_config(devices=4)
+    placement = sharding.seed_placement(config.train)
+    init, _, _ = cli.programs(config)
+    state = init(placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in range(4)])),
+                 placement.put_replicated(np.int32(192)))
+    summary["state_devices"] = sorted({len(leaf.sharding.device_set) for leaf in jax.tree.leaves(state)})
+    summary["shard_seeds"] = sorted({leaf.addressable_shards[0].data.shape[0] for leaf in jax.tree.leaves(state)})
+    # Uneven and impossible device counts (resolved, not compiled).
+    devices, note = sharding.seed_devices(tiny_config(num_seeds=6).train)
+    summary["six_seeds_default"] = [len(devices), note]
+    try:
+        cli.programs(tiny_config(devices=3))
+    except ConfigError as e:
+        summary["three_devices_error"] = str(e)
+    summary["eight_devices_status"] = cli.run(tiny_config(devices=8), out / "eight", show_progress=False)
+    (out / "summary.json").write_text(json.dumps(summary))
+
+
+def multi(out: Path) -> int:
+    """One of two processes: the 4 seeds over 2 x 2 devices, interrupted after one chunk, then
+    resumed through the command line (which picks the multi-process setup up from the environment)."""
+    import functools
+
+    # Gloo would bind to the address of the host name; keep the test on loopback (private API: skipped
+    # if it moves, then Gloo falls back to its default).
+    from jax._src.lib import _jax
+    if hasattr(_jax, "make_gloo_tcp_collectives"):
+        _jax.make_gloo_tcp_collectives = functools.partial(_jax.make_gloo_tcp_collectives, hostname="127.0.0.1")
+    import jax
+
+    from docrl_jax import cli, sharding
+    sharding.initialize_distributed()
+    assert jax.process_count() == 2 and len(jax.devices()) == 4 and len(jax.local_devices()) == 2
+    run_dir = out / "multi"
+    first = cli.run(tiny_config(), run_dir, show_progress=False, stop_after_chunks=1)
+    second = cli.main(["--run-dir", str(run_dir), "--resume", "--no-progress"])
+    print(f"process {jax.process_index()}: exit codes {first} {second}", flush=True)
+    return 0 if (first, second) == (cli.EXIT_INTERRUPTED, cli.EXIT_OK) else 1
+
+
+if __name__ == "__main__":
+    mode, out = sys.argv[1], Path(sys.argv[2])
+    count = {"single": 4, "multi": 2}[mode]
+    os.environ["XLA_FLAGS"] = (f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={count} "
+                               f"{XLA_FLAGS}")
+    if mode == "single":
+        single(out)
+        sys.exit(0)
+    sys.exit(multi(out))
