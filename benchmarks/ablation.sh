@@ -4,7 +4,10 @@
 #
 #   bash benchmarks/ablation.sh VARIANTS_FILE BUDGET_S "SEEDS" OUT_DIR [DEADLINE_S]
 #
-# VARIANTS_FILE: one variant per line, `tag config [section.key=value ...]` (# comments allowed).
+# VARIANTS_FILE: one variant per line, `tag config [seeds=S1,S2] [section.key=value ...]` (# comments
+# allowed); `seeds=` overrides SEEDS for that line, so one line per seed spreads seeds over GPUs.
+# TTS_EXTRA: more time_to_success.py arguments for every variant (e.g. "--to-end");
+# RUN_ROOT: where the run directories go (default /tmp/ablation_runs; pack them with pack_runs.sh).
 # Variants are dealt round-robin to the GPUs (CUDA_VISIBLE_DEVICES), each GPU runs its share one
 # after another, so variants on different GPUs run side by side and never share a GPU. No variant
 # starts after DEADLINE_S seconds (default 1e9). Results: OUT_DIR/time_to_success_<tag>.{json,md,log}.
@@ -20,10 +23,14 @@ for g in $(seq 0 $((ngpu - 1))); do
       [ $((i % ngpu)) -eq "$g" ] || continue
       [ $(( $(date +%s) - start )) -lt "$deadline" ] || { echo "gpu $g: deadline, skipping ${lines[$i]}"; continue; }
       read -r tag config rest <<< "${lines[$i]}"
-      sets=(); for kv in $rest; do sets+=(--set "$kv"); done
-      CUDA_VISIBLE_DEVICES=$g python3 benchmarks/time_to_success.py --config "$config" --seeds $seeds \
-        --budget-s "$budget" --tag "$tag" --out "$out" --run-root "/tmp/ablation_runs" --compile-cache default \
-        "${sets[@]}" > "$out/driver_$tag.txt" 2>&1
+      sets=(); line_seeds=$seeds
+      for kv in $rest; do
+        case $kv in seeds=*) line_seeds=${kv#seeds=}; line_seeds=${line_seeds//,/ } ;; *) sets+=(--set "$kv") ;; esac
+      done
+      read -r -a extra <<< "${TTS_EXTRA:-}"
+      CUDA_VISIBLE_DEVICES=$g python3 benchmarks/time_to_success.py --config "$config" --seeds $line_seeds \
+        --budget-s "$budget" --tag "$tag" --out "$out" --run-root "${RUN_ROOT:-/tmp/ablation_runs}" \
+        --compile-cache default "${extra[@]}" "${sets[@]}" > "$out/driver_$tag.txt" 2>&1
       echo "gpu $g: $tag done at $(( $(date +%s) - start )) s"; tail -n 6 "$out/driver_$tag.txt"
     done
   ) &

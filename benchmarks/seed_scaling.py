@@ -3,9 +3,11 @@ at the same seeds per device (docrl_jax.sharding; the programs of docrl_jax.cli.
 
     python benchmarks/seed_scaling.py                                   # td3_lstm, 1 and 2 seeds per GPU
     python benchmarks/seed_scaling.py --configs td3_lstm sac_lstm --num-envs 4096 --seeds-per-device 1 4
+    python benchmarks/seed_scaling.py --device-counts 1 2 4 --num-envs 4096 --seeds-per-device 1
     python benchmarks/seed_scaling.py --smoke                           # CPU, 4 forced host devices, tiny
 
-For each config, num_envs and seeds per device k, and each device count D in {1, all}: the run
+For each config, num_envs and seeds per device k, and each device count D (--device-counts,
+default {1, all}): the run
 trains k x D seeds over D devices (one seed per device runs the unbatched program, more are
 vmapped). Compile one chunk (timed separately), run one warm-up chunk (fills the replay past
 start_steps = 0 and seq_len, so every timed iteration learns), then time --repeats chunks; the
@@ -83,6 +85,8 @@ def main(argv=None) -> int:
     ap.add_argument("--configs", nargs="+", default=["td3_lstm"])
     ap.add_argument("--num-envs", type=int, nargs="+", default=[1024])
     ap.add_argument("--seeds-per-device", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--device-counts", type=int, nargs="+", default=None,
+                    help="device counts to measure (default: 1 and all local devices), e.g. 1 2 4")
     ap.add_argument("--iters", type=int, default=50, help="iterations per timed chunk")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--set", action="append", default=[], help="extra config overrides section.key=value")
@@ -101,7 +105,10 @@ def main(argv=None) -> int:
 
     from common import run_meta, write_results
     available = len(jax.local_devices())
-    counts = [1] if available == 1 else [1, available]
+    counts = args.device_counts or ([1] if available == 1 else [1, available])
+    if any(d < 1 or d > available for d in counts):
+        ap.error(f"--device-counts {counts}: each must be between 1 and the {available} local devices")
+    counts = sorted(set(counts))
     meta = {**run_meta(), "local_devices": [str(d) for d in jax.local_devices()]}
     print(json.dumps(meta), flush=True)
     columns = [("config", "config"), ("num_envs", "num_envs"), ("seeds/device", "seeds_per_device"),
