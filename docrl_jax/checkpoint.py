@@ -2,7 +2,8 @@
 
     <run_dir>/checkpoints/<env_steps>/
         state/    the whole runner state of every seed (agent, optimisers, replay buffer, envs, keys)
-        policy/   the online actor parameters, stacked over seeds (read by `load_policy`)
+        policy/   the run's policy: the actor's Polyak average (agent.policy_average_tau; the trained
+                  actor itself when that is 1), stacked over seeds (read by `load_policy`)
         meta/     JSON: env_steps, chunk, wall_time_s, config name
 
 Orbax cannot write zero-size arrays (MJX keeps a few), so a tree is stored as its non-empty leaves

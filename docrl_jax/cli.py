@@ -261,7 +261,7 @@ def compiled_programs(config: Config):
     with ThreadPoolExecutor(3) as pool:
         jobs = [pool.submit(lambda: init.lower(keys, total).compile()),
                 pool.submit(lambda: chunk.lower(abstract).compile()),
-                pool.submit(lambda: evaluate.lower(abstract.agent.actor, keys).compile())]
+                pool.submit(lambda: evaluate.lower(abstract.agent.actor_average, keys).compile())]
         compiled = tuple(j.result() for j in jobs)
     _COMPILED[key] = compiled
     return (*compiled, time.time() - t0)
@@ -338,14 +338,18 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         return wall_before + time.time() - launch_time
 
     def save(steps: int):
-        policy = state.agent.actor
+        policy = state.agent.actor_average  # the run's policy (= the trained actor unless averaged)
         checkpoint.save(mngr, steps, state, policy,
                         {"env_steps": steps, "chunk": done_chunks, "wall_time_s": wall(), "pending": pending,
                          "name": config.name})
 
     def do_eval(steps: int):
         nonlocal pending
-        ev = placement.get(evaluate(state.agent.actor, placement.put_seeds(np.asarray(eval_keys(seeds, steps)))))
+        keys = placement.put_seeds(np.asarray(eval_keys(seeds, steps)))
+        ev = placement.get(evaluate(state.agent.actor_average, keys))
+        trained = {}
+        if t_cfg.eval_trained_actor and config.agent.policy_average_tau < 1.0:
+            trained = placement.get(evaluate(state.agent.actor, keys))  # same episodes, the trained actor
         updates = placement.get(state.agent.updates)
         rows = []
         for i, seed in enumerate(seeds):
@@ -365,6 +369,8 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
                    "q": p["q"] / learn if learn else math.nan,
                    "policy_freq": p["policy_freq"] / learn if learn else math.nan,
                    "grad_updates": int(updates[i])}
+            for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
+                row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
             rows.append(row)
         if primary:
             with open(metrics_path, "a", newline="") as fh:

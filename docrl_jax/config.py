@@ -91,6 +91,11 @@ class AgentConfig:
                         "target); never crosses an episode end or the sequence end (common.nstep_targets).")
     lr_end_scale: float = _f(1.0, "All learning rates fall linearly with env-step progress from their value to "
                                   "lr_end_scale x their value at total_env_steps (1 = constant, the paper's).")
+    policy_average_tau: float = _f(1.0, "The run's policy (evaluated, checkpointed, loaded) is a Polyak average "
+                                        "of the trained actor: after every actor update, average <- (1 - tau) "
+                                        "average + tau actor. 1 = the trained actor itself (the paper's). Ours: "
+                                        "0.001 averages over ~1,000 actor updates, which damps the swings of "
+                                        "the trained actor between evaluations.")
 
 
 @dataclass(frozen=True)
@@ -133,6 +138,9 @@ class TrainConfig:
                                 "termination or the step limit, on the training distribution of starts/goals.")
     eval_paper_pairs: bool = _f(False, "Also evaluate the paper's air-to-water and water-to-air pairs "
                                        "(eval_episodes each, columns success_air_to_water/_water_to_air).")
+    eval_trained_actor: bool = _f(False, "With agent.policy_average_tau < 1: also evaluate the trained (not "
+                                         "averaged) actor on the same episodes, columns trained_actor_* "
+                                         "(an ablation; doubles the evaluation time).")
     checkpoint_every: int = _f(200_000, "Env steps between Orbax checkpoints (plus one at the end and on Ctrl-C).")
     keep_checkpoints: int = _f(3, "Most recent checkpoints kept on disk.")
 
@@ -406,6 +414,8 @@ def validate(c: Config) -> Config:
         _bad("agent.gamma", a.gamma, "must be in [0, 1)")
     if not 0.0 < a.tau <= 1.0:
         _bad("agent.tau", a.tau, "must be in (0, 1]")
+    if not 0.0 < a.policy_average_tau <= 1.0:
+        _bad("agent.policy_average_tau", a.policy_average_tau, "must be in (0, 1] (1 = no averaging)")
     if a.ou_theta > 1.0:
         _bad("agent.ou_theta", a.ou_theta, "must be in [0, 1] (mean reversion per step)")
     if a.init_alpha <= 0:

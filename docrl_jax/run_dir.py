@@ -27,7 +27,9 @@ TB_DIR = "tb"
 # metrics.csv: the first five are the evaluator's contract; the rest may grow.
 METRIC_COLUMNS = ["env_steps", "wall_time_s", "seed", "success_rate", "episode_return",
                   "success_air_to_water", "success_water_to_air", "train_episode_return", "train_success_rate",
-                  "train_episodes", "critic_loss", "actor_loss", "alpha", "q", "policy_freq", "grad_updates"]
+                  "train_episodes", "critic_loss", "actor_loss", "alpha", "q", "policy_freq", "grad_updates",
+                  "trained_actor_success_rate", "trained_actor_success_air_to_water",
+                  "trained_actor_success_water_to_air"]
 
 
 def read_config(run_dir: str | Path) -> Config:

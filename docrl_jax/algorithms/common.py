@@ -17,7 +17,8 @@ from docrl_jax.networks import unroll
 
 @struct.dataclass
 class AgentState:
-    actor: Any               # online actor params
+    actor: Any               # online actor params (the one trained)
+    actor_average: Any       # Polyak average of `actor` (agent.policy_average_tau): the run's policy
     actor_target: Any        # TD3/DDPG target actor (SAC: unused copy, kept for one layout)
     critic: Any              # online critics
     critic_target: Any
@@ -148,7 +149,7 @@ def init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_t
     obs, act = jnp.zeros((1, OBS_SIZE)), jnp.zeros((1, ACTION_SIZE))
     actor_params = actor.init(k_a, actor.init_carry((1,)), obs)
     critic_params = critic.init(k_c, obs, act)
-    return AgentState(actor=actor_params, actor_target=actor_params, critic=critic_params,
+    return AgentState(actor=actor_params, actor_average=actor_params, actor_target=actor_params, critic=critic_params,
                       critic_target=critic_params, actor_opt=actor_tx.init(actor_params),
                       critic_opt=critic_tx.init(critic_params), log_alpha=log_alpha,
                       alpha_opt=alpha_tx.init(log_alpha), updates=jnp.zeros((), jnp.int32))

@@ -101,6 +101,7 @@ def make_sac(config: Config) -> Agent:
             al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, a_cfg.target_entropy, seq.mask)
             log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha)
             s = s.replace(actor=actor_params, actor_opt=actor_opt, log_alpha=log_alpha, alpha_opt=alpha_opt,
+                          actor_average=soft_update(s.actor_average, actor_params, a_cfg.policy_average_tau),
                           critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
             return s, (a_loss, al_loss)
 

@@ -89,6 +89,7 @@ def make_td3(config: Config) -> Agent:
             a_loss, a_grads = jax.value_and_grad(actor_loss)(s.actor, actor, critic, s.critic, seq, memory)
             new_actor, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale)
             s = s.replace(actor=new_actor, actor_opt=actor_opt,
+                          actor_average=soft_update(s.actor_average, new_actor, a_cfg.policy_average_tau),
                           actor_target=soft_update(s.actor_target, new_actor, a_cfg.tau),
                           critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
             return s, a_loss
