@@ -309,8 +309,9 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     if resume:
         step = mngr.latest_step()
         try:
-            state, _, meta = checkpoint.restore(mngr, step, abstract_state=jax.eval_shape(init, keys, total),
-                                                sharding=placement.seed_sharding)
+            # Shapes from the jitted program: a compiled one cannot be traced again.
+            abstract = jax.eval_shape(programs(config)[0], keys, total)
+            state, _, meta = checkpoint.restore(mngr, step, abstract_state=abstract, sharding=placement.seed_sharding)
         except Exception as e:
             console.print(f"[bold red]error:[/] cannot restore checkpoint {step} of {run_dir}: {type(e).__name__}: {e}")
             return EXIT_CONFIG

@@ -6,7 +6,9 @@ from __future__ import annotations
 import jax
 import pytest
 
-from docrl_jax.config import load_config
+import yaml
+
+from docrl_jax.config import config_from_dict, load_config, packaged_configs_dir
 from docrl_jax.train import make_train, make_trainer
 
 SMALL = ["env.num_envs=4", "replay.buffer_size=400", "replay.batch_size=8", "train.total_env_steps=64",
@@ -15,7 +17,8 @@ SMALL = ["env.num_envs=4", "replay.buffer_size=400", "replay.batch_size=8", "tra
 
 @pytest.mark.parametrize("name, extra", [
     ("td3_lstm", []), ("sac_lstm", []), ("ddpg_mlp", []), ("sac_mlp", []),
-    ("td3_lstm", ["agent.memory=false", "replay.seq_len=1", "replay.burn_in=0"]),
+    ("td3_lstm", ["agent.memory=false", "replay.seq_len=1", "replay.burn_in=0", "agent.n_step=1"]),
+    ("td3_lstm_paper", []), ("sac_lstm_paper", []), ("ddpg_mlp_paper", []), ("sac_mlp_paper", []),
 ])
 def test_make_train_traces_for_every_agent(name, extra):
     config = load_config(name, SMALL + extra)
@@ -27,3 +30,15 @@ def test_make_train_traces_for_every_agent(name, extra):
     assert carry[0].shape == ((4, 100, 32) if config.agent.actor == "lstm" else (4, 100, 1))
     ev = jax.eval_shape(trainer.evaluate, state.agent.actor, jax.random.PRNGKey(1))
     assert {"success_rate", "episode_return", "success_air_to_water", "success_water_to_air"} <= set(ev)
+
+
+@pytest.mark.parametrize("name", ["td3_lstm", "sac_lstm"])
+def test_packaged_default_traces_at_its_gpu_size(name):
+    """What `--config td3_lstm` builds on a GPU (4,096 envs, 1,024 sequences per update, the auto
+    buffer), traced on the CPU: the shapes the GPU will compile."""
+    raw = yaml.safe_load((packaged_configs_dir() / f"{name}.yaml").read_text())
+    config = config_from_dict(raw, backend="gpu")
+    state, metrics = jax.eval_shape(make_train(config), jax.random.PRNGKey(0))
+    n, steps = config.env.num_envs, config.replay.buffer_size // config.env.num_envs
+    assert (n, steps) == (4096, 256) and state.buffer.data["obs"].shape == (n, steps, 26)
+    assert metrics["critic_loss"].shape == (make_trainer(config).num_chunks,)
