@@ -23,9 +23,7 @@ from typing import Any
 
 import yaml
 
-
-class ConfigError(ValueError):
-    """An invalid configuration; the message names the key, the value and the valid choices."""
+from docrl_jax.errors import ConfigError  # noqa: F401  (re-exported: docrl_jax.config.ConfigError)
 
 
 # What `auto` sizes resolve to, by JAX backend ("gpu" also stands for "tpu"): envs per seed, and

@@ -389,6 +389,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
            "env": parse_env_overrides(args.env), "seed_indices": parse_seed_indices(args.seed_index)}
     if args.run is not None:
         check_run_dir(args.run)
+    from docrl_jax.plotting import find_metrics_csv  # evaluate -> plotting, never the other way
     for d in args.curves or []:
         try:
             find_metrics_csv(d)
@@ -410,16 +411,6 @@ def check_run_dir(run_dir: str | os.PathLike) -> Path:
         raise RunDirError(f"run directory {str(path)!r} has no config.yaml (is it a trainer run dir? "
                           f"it contains: {found or 'nothing'})")
     return path
-
-
-def find_metrics_csv(path: str | os.PathLike) -> Path:
-    from docrl_jax.policy import RunDirError
-    p = Path(path)
-    if p.is_file():
-        return p
-    if (p / "metrics.csv").is_file():
-        return p / "metrics.csv"
-    raise RunDirError(f"{str(p)!r}: no metrics.csv there (give a run directory or a metrics.csv file)")
 
 
 def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = SCENARIOS,
@@ -541,7 +532,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out_dir.mkdir(parents=True, exist_ok=True)
     if args.curves:
         from docrl_jax import plotting
-        csvs = [find_metrics_csv(d) for d in args.curves]
+        csvs = [plotting.find_metrics_csv(d) for d in args.curves]
         paths = plotting.plot_learning_curves(csvs, out_dir)
         print("learning curves:", ", ".join(str(p) for p in paths))
     if args.run is None and args.policy is None:

@@ -298,7 +298,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.cmd == "figure3":
             print(plot_figure3(args.eval_dirs, args.scenario, args.out, args.trajectories, args.seed_index))
         else:
-            from docrl_jax.evaluate import find_metrics_csv
             labels = args.labels.split(",") if args.labels else None
             print(*plot_learning_curves([find_metrics_csv(r) for r in args.runs], args.out, labels))
     except (ValueError, FileNotFoundError) as e:
@@ -363,6 +362,17 @@ def aggregate_curves(series: Sequence[tuple[np.ndarray, np.ndarray]], num: int =
     grid = np.linspace(lo, hi, num) if hi > lo else np.array([lo])
     ys = np.stack([np.interp(grid, x, y) for x, y in clean])
     return grid, ys.mean(0), ys.std(0), len(clean)
+
+
+def find_metrics_csv(path) -> Path:
+    """A run directory's metrics.csv, or the file itself; RunDirError names what is missing."""
+    from docrl_jax.policy import RunDirError
+    p = Path(path)
+    if p.is_file():
+        return p
+    if (p / "metrics.csv").is_file():
+        return p / "metrics.csv"
+    raise RunDirError(f"{str(p)!r}: no metrics.csv there (give a run directory or a metrics.csv file)")
 
 
 def plot_learning_curves(csv_paths: Sequence, out_dir, labels: Sequence[str] | None = None,

@@ -31,13 +31,16 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from docrl_jax.config import ConfigError, TrainConfig
+from docrl_jax.errors import ConfigError
+
+if TYPE_CHECKING:  # annotations only: config imports this module to check device memory
+    from docrl_jax.config import TrainConfig
 
 SEED_AXIS = "seed"
 ENV_COORDINATOR, ENV_NUM_PROCESSES, ENV_PROCESS_ID = "JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID"

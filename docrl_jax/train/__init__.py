@@ -22,6 +22,9 @@ A *chunk* is `log_every` env steps of iterations (rounded up to whole iterations
 the compiled chunk repeatedly, donating the runner state, and between chunks logs, evaluates
 (`train_eval`) and checkpoints (`checkpoint`). `make_train`'s `train(key)` runs all chunks in one
 program without evaluation.
+
+`python -m docrl_jax.train` runs `docrl_jax/train/__main__.py`, i.e. `docrl_jax.cli.main`; this module
+never imports the CLI, so the two form no import cycle.
 """
 
 from __future__ import annotations
@@ -217,8 +220,3 @@ def _chunk_summary(m: dict) -> dict:
     out["learn_iters"] = jnp.sum(learn)
     out["nonfinite_iter"] = jnp.where(jnp.any(bad), jnp.argmax(bad), -1)
     return out
-
-
-if __name__ == "__main__":
-    from docrl_jax.cli import main
-    raise SystemExit(main())
