@@ -19,7 +19,8 @@ Episode ends, as Gymnasium names them:
 Auto-reset mode: SAME_STEP (`metadata["autoreset_mode"] = AutoresetMode.SAME_STEP`), the mode our
 own training wrapper uses, chosen because it wastes no step: when env i ends on a step, the
 returned `obs[i]` and the top-level info of env i are already those of its new episode (reset with
-a key drawn from the env's own key stream, as `docrl_jax.envs.AutoResetWrapper` does), while
+`split(key)[1]` of the ended episode's PRNG key; an episode that goes on keeps our step's key, so
+every episode is exactly our `reset(key)` followed by `step`s), while
 `reward[i]`, `terminated[i]` and `truncated[i]` describe the transition that ended it. As
 Gymnasium's SyncVectorEnv does in that mode, `infos["final_obs"]` is an object array holding that
 transition's true next observation at i (None elsewhere) and `infos["final_info"]` its info dict,
@@ -86,11 +87,11 @@ def _programs(scenario: int, overrides: dict[str, Any]):
         info = stepped.info
         terminated = info["terminated"] | (info["arrived"] & on_arrival)
         truncated = stepped.done & ~terminated          # only our step limit is left
-        # SAME_STEP auto-reset, with the reset key drawn as AutoResetWrapper draws it.
-        key, k_reset = jax.random.split(stepped.sim.key)
-        fresh = env.reset(k_reset)
-        going_on = stepped.replace(sim=stepped.sim.replace(key=key))
-        nxt = jax.tree.map(lambda f, s: jnp.where(stepped.done, f, s), fresh, going_on)
+        # SAME_STEP auto-reset. An episode that goes on keeps our step's own key, so every episode
+        # is exactly our env's reset(key) + step sequence; a new episode's reset key is drawn from
+        # the ended episode's key (under vmap both branches run and `where` picks one per env).
+        fresh = env.reset(jax.random.split(stepped.sim.key)[1])
+        nxt = jax.tree.map(lambda f, s: jnp.where(stepped.done, f, s), fresh, stepped)
         out = {"obs": nxt.obs, "reward": stepped.reward, "terminated": terminated, "truncated": truncated,
                "info": nxt.info}
         final = {"obs": stepped.obs, "info": info}
