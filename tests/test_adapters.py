@@ -2,7 +2,7 @@
 
 Each adapter must give our env's numbers for the same keys and actions, end episodes where ours does
 with the right terminated/truncated split, and auto-reset as its library expects. The Brax parts
-(the env inside Brax's own training wrappers, and Brax's SAC and PPO trainers for a few steps) run
+(the env inside Brax's own training wrappers, and Brax's SAC trainer for a few steps) run
 in a subprocess, tests/_brax_worker.py, started with this module so that it compiles on the second
 core while the Gymnasium tests run here.
 
@@ -34,7 +34,9 @@ from docrl_jax.envs.gym_env import ENV_ID, HUAUVGymEnv, HUAUVVectorEnv
 LIMIT = 4                 # the adapters' step limit in these tests
 STEPS = 6                 # steps run: 3 inside the episode, the time-out, 2 into the next episode
 NUM_ENVS = 2
-GYM_KW = {"scenario": 1, "wind": False, "max_episode_steps": LIMIT}
+# XLA's cheap CPU optimisation level: compiling, not running, is what these short tests spend.
+FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
+GYM_KW = {"scenario": 1, "wind": False, "max_episode_steps": LIMIT, "compiler_options": FAST_COMPILE}
 TIMEOUT_REWARD = -10.0
 WORKER = Path(__file__).with_name("_brax_worker.py")
 
@@ -54,7 +56,7 @@ def brax_worker():
 def ref(env_fns):
     """(env, jitted reset, rollout) of the reference env."""
     env, _, rollout = env_fns(1, wind=False)
-    return env, jax.jit(env.reset), rollout
+    return env, jax.jit(env.reset, compiler_options=FAST_COMPILE), rollout
 
 
 def _key_after(key, steps: int):
@@ -209,10 +211,10 @@ def test_brax_env_matches_ours_truncates_and_auto_resets(brax_result):
     assert brax_result["env"] == "ok", brax_result["env"]
 
 
-def test_brax_sac_and_ppo_train_on_our_env(brax_result):
+def test_brax_sac_trains_on_our_env(brax_result):
     # The shim: jax 0.10 lacks device_put_replicated, importing the adapter defines it.
     assert not brax_result["jax_had_device_put_replicated"] and brax_result["jax_has_device_put_replicated"]
-    for name in ("sac", "ppo"):
+    for name in ("sac",):   # PPO: tests/_brax_worker.py --ppo, and benchmarks/peers.py --smoke
         r = brax_result[name]
         assert "error" not in r, r.get("error")
         assert r["progress_steps"] and r["progress_steps"][-1] >= 32, (name, r)
