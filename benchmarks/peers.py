@@ -351,7 +351,8 @@ def gym_loop(args) -> int:
 
     from docrl_jax.envs.gym_env import HUAUVVectorEnv
     tag = args.tag or ("smoke" if args.smoke else "default")
-    meta = run_meta()
+    # The 1-minute load average before starting: a CPU loop's rate depends on what else runs.
+    meta = {**run_meta(), "loadavg_1min_at_start": round(os.getloadavg()[0], 2), "cpu_count": os.cpu_count()}
     rows = []
     for n in args.gym_num_envs:
         t0 = time.time()
@@ -372,7 +373,8 @@ def gym_loop(args) -> int:
                      "startup_s": round(startup, 1)})
         print(f"gym loop, {n} envs: {rows[-1]['env_steps_per_s']:,} env steps/s "
               f"({rows[-1]['vector_steps_per_s']} vector steps/s; start-up and compile {startup:.1f} s)", flush=True)
-        write_results(args.out, f"peers_gym_loop_{tag}", "Gymnasium vector loop (NumPy in and out, random actions)",
+        write_results(args.out, f"peers_gym_loop_{tag}", "Gymnasium vector loop (NumPy in and out, random actions; "
+                      f"{meta['cpu_count']} CPUs, load {meta['loadavg_1min_at_start']} at start)",
                       meta, rows, [("envs", "num_envs"), ("env steps/s", "env_steps_per_s"),
                                    ("vector steps/s", "vector_steps_per_s"), ("steps timed", "vector_steps"),
                                    ("episodes ended", "episodes_ended"), ("start-up + compile (s)", "startup_s")])
