@@ -19,8 +19,9 @@ this class is one un-batched, never-resetting env. How our episode semantics map
   bounds, diverged physics, or arrival when `terminate_on_arrival=True`.
 * The paper's -10 time-out reward is still paid, on the step where our own step counter reaches
   `episode_length` (without a collision or arrival on that step), so Brax's reported episode
-  returns equal ours. Pass `episode_length=env.episode_length` (default 500, the paper's) to the
-  trainer so both counters agree; Brax's losses mask that transition anyway.
+  returns equal ours. Pass `episode_length=env.episode_length` (default 500, the paper's) and
+  `action_repeat=1` to the trainer so both counters agree (with action_repeat k, our counter counts
+  the k inner steps: use an episode_length divisible by k); Brax's losses mask that transition anyway.
 * Auto-reset. Brax's `AutoResetWrapper` restores the `pipeline_state` and `obs` an env slot had at
   its first reset: every episode of one slot starts from the same pose, yaw and goal (slots differ).
   Our full `EnvState` is the `pipeline_state`, so the step counter, goal and `goals_reached` restart
