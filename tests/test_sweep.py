@@ -5,19 +5,17 @@ table's arithmetic, a 2-value grid end to end (table, figures, per-combination m
 from __future__ import annotations
 
 import csv
+import functools
 import json
+from pathlib import Path
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 import yaml
-from _trainer_common import EASY, easy_config, finished_run, tmp_dir
+from _trainer_common import EASY, finished_run, tmp_dir
 
 from docrl_jax import cli, sweep
-from docrl_jax.algorithms.common import HParams
 from docrl_jax.config import ConfigError
-from docrl_jax.train import make_trainer
 
 
 def _rows(path):
@@ -89,75 +87,60 @@ def test_table_time_to_90_and_final_success(tmp_path):
     assert (tmp_path / "curves_agent.tau.png").stat().st_size > 10_000 and len(paths) == 3
 
 
-def _first_chunk(config, traced_hp=None, seeds=(0,)):
-    """Metrics and actor params after one chunk of the compiled (AOT) programs cli.run or the sweep
-    use: plain when traced_hp is None, else traced with one HParams per row."""
-    traced = traced_hp is not None
-    init, chunk, _, _ = cli.compiled_programs(config, traced=traced)
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    total = jnp.asarray(make_trainer(config).total_env_steps, jnp.int32)
-    hp = (HParams.stack(traced_hp),) if traced else ()
-    state, m = chunk(init(keys, total, *hp), *hp)
-    return jax.device_get(m), jax.device_get(state.agent.actor)
+@functools.lru_cache(maxsize=None)
+def _sweep(*grid: str, seeds: int = 1) -> Path:
+    """Run directory of a sweep of the easy config, one chunk (4,000 env steps) per row."""
+    d = tmp_dir("sweeps") / "_".join(g.replace("=", "-").replace(",", "+") for g in grid)
+    argv = ["--config", _easy_yaml(), "--seeds", str(seeds), "--set", "train.total_env_steps=4000",
+            "--run-dir", str(d), "--compile-cache", "off"]
+    for g in grid:
+        argv += ["--grid", g]
+    assert sweep.main(argv) == cli.EXIT_OK
+    return d
 
 
-def test_one_combination_sweep_matches_a_plain_run():
-    """A 1-combination sweep (the easy config's own tau, traced) against cli.run of that config, one
-    chunk: the same computation, but not bit-identical: XLA rewrites Adam's step around a constant
-    learning rate differently from a traced one (1 ulp in some weights per update; measured), and
-    training amplifies that like the float rounding of vmapped seeds. So the tolerance of
+def _assert_close_rows(ours, theirs):
+    """metrics.csv rows of one chunk (evaluations at 0 and 4,000) of two runs of one configuration
+    whose programs differ only in float rounding, with the tolerance of
     test_train.test_vmapped_seeds_equal_separate_runs: counts exactly, losses to 1e-3 relative; the
     step-0 evaluation (same initial weights) exactly, the one after the chunk to one episode."""
-    d = tmp_dir("sweep_one")
-    assert sweep.main(["--config", _easy_yaml(), "--grid", "agent.tau=0.01", "--seeds", "1", "--run-dir",
-                       str(d / "s"), "--set", "train.total_env_steps=4000", "--compile-cache", "off"]) == cli.EXIT_OK
-    ours = _rows(d / "s" / "c00" / "metrics.csv")
-    plain = _rows(finished_run(train__total_env_steps=4000) / "metrics.csv")
-    assert [r["combination"] for r in ours] == ["c00"] * 2 and {r["agent.tau"] for r in ours} == {"0.01"}
-    assert [r["env_steps"] for r in ours] == [r["env_steps"] for r in plain] == ["0", "4000"]
-    for a, b in zip(ours, plain):
+    assert [r["env_steps"] for r in ours] == [r["env_steps"] for r in theirs] == ["0", "4000"]
+    for a, b in zip(ours, theirs):
         for k, v in b.items():
-            if k == "wall_time_s":
+            if k in ("wall_time_s", "combination") or k.startswith("agent."):
                 continue
             if k in ("env_steps", "seed", "train_episodes", "grad_updates", "policy_freq") or a is ours[0]:
                 assert a[k] == v, (a["env_steps"], k)
             elif k == "success_rate":
                 assert abs(float(a[k]) - float(v)) <= 1 / EASY["train"]["eval_episodes"] + 1e-9
-            elif k != "episode_return":  # a return sums 64 episodes' rewards: follows success_rate
+            elif k != "episode_return":  # a return sums 64 episodes' rewards: it follows success_rate
                 np.testing.assert_allclose(float(a[k]), float(v), rtol=1e-3, atol=1e-5, err_msg=k)
 
 
-def test_two_value_grid_end_to_end_and_rows_equal_separate_runs():
-    d = tmp_dir("sweep_two") / "s"
-    assert sweep.main(["--config", _easy_yaml(), "--grid", "agent.tau=0.01,0.02", "--seeds", "1",
-                       "--set", "train.total_env_steps=4000", "--run-dir", str(d), "--compile-cache", "off"]) == 0
+def test_one_combination_sweep_matches_a_plain_run():
+    """A 1-combination sweep (the easy config's own tau, traced) against cli.run of that config: the
+    same computation, but not bit-identical: XLA rewrites Adam's step around a constant learning
+    rate differently from a traced one (1 ulp in some weights per update; measured), and training
+    amplifies that like the float rounding of vmapped seeds."""
+    ours = _rows(_sweep("agent.tau=0.01") / "c00" / "metrics.csv")
+    assert [r["combination"] for r in ours] == ["c00"] * 2 and {r["agent.tau"] for r in ours} == {"0.01"}
+    _assert_close_rows(ours, _rows(finished_run(train__total_env_steps=4000) / "metrics.csv"))
+
+
+def test_two_value_grid_end_to_end_and_rows_match_separate_runs():
+    d = _sweep("agent.tau=0.01,0.02")
     md = (d / "sweep.md").read_text()
     assert "| c00 | 0.01 | 1 | n/a (train.eval_paper_pairs false) |" in md and "| c01 | 0.02 | 1 |" in md
     recs = _rows(d / "sweep.csv")
     assert [r["agent.tau"] for r in recs] == ["0.01", "0.02"] and all(r["final_env_steps"] == "4000" for r in recs)
     assert (d / "curves_agent.tau.png").stat().st_size > 10_000
+    assert json.loads((d / "sweep.json").read_text())["groups"] == [["c00", "c01"]]  # one program
     for name, tau in (("c00", "0.01"), ("c01", "0.02")):
         rows = _rows(d / name / "metrics.csv")
-        assert [int(r["env_steps"]) for r in rows] == [0, 4000] and {r["agent.tau"] for r in rows} == {tau}
+        assert {r["agent.tau"] for r in rows} == {tau} and {r["combination"] for r in rows} == {name}
         assert int(rows[-1]["grad_updates"]) == (4000 - 2000) // 16 * 2
         assert yaml.safe_load((d / name / "config.yaml").read_text())["agent"]["tau"] == float(tau)
-
-    # Each row of the 2-row (vmapped) program against a 1-row run of its combination, with the
-    # tolerance of test_train.test_vmapped_seeds_equal_separate_runs (one chunk).
-    one, two = easy_config(), easy_config(train__num_seeds=2)
-    hps = [HParams.from_agent_config(easy_config(agent__tau=t).agent) for t in (0.01, 0.02)]
-    m2, a2 = _first_chunk(two, hps, seeds=(3, 3))
-    separate = []
-    for i, hp in enumerate(hps):
-        m1, a1 = _first_chunk(one, [hp], seeds=(3,))
-        for k, v in m1.items():
-            np.testing.assert_allclose(v[0], m2[k][i], rtol=1e-3, atol=1e-5, err_msg=k)
-        for k in ("episodes", "success_sum", "arrivals", "collisions", "updates", "actor_updates"):
-            assert m1[k][0] == m2[k][i], k
-        separate.append(jax.tree.map(lambda x: np.asarray(x)[0], a1))
-    assert not np.allclose(m2["critic_loss"][0], m2["critic_loss"][1])  # tau reached the rows
-    vmapped = [jax.tree.map(lambda x, i=i: np.asarray(x)[i], a2) for i in (0, 1)]
-    for i in (0, 1):
-        for same, sep, other in zip(jax.tree.leaves(vmapped[i]), jax.tree.leaves(separate[i]),
-                                    jax.tree.leaves(separate[1 - i])):
-            assert np.linalg.norm(same - sep) < 0.1 * np.linalg.norm(sep - other)
+        # Each row of the 2-row (vmapped) program against a 1-combination sweep of its value.
+        _assert_close_rows(rows, _rows(_sweep(f"agent.tau={tau}") / "c00" / "metrics.csv"))
+    c00, c01 = (_rows(d / n / "metrics.csv")[-1] for n in ("c00", "c01"))
+    assert c00["critic_loss"] != c01["critic_loss"]  # each row trained with its own tau
