@@ -136,6 +136,9 @@ def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
             raise ConfigError("--resume takes the config from the run directory's config.yaml; drop --config "
                               "(use --set to change e.g. train.total_env_steps)")
         run_dir = Path(args.run_dir)
+        if (run_dir / "sweep.json").is_file():  # docrl_jax.sweep.SWEEP_FILE (not imported: no cycle)
+            raise RunDirError(f"{str(run_dir)!r} is a sweep (docrl_jax.sweep): sweeps write no checkpoints and "
+                              f"cannot be resumed; train one combination with --config {run_dir}/cNN/config.yaml")
         read_config(run_dir)  # clear errors for a missing dir or config
         if checkpoint.latest_step(run_dir) is None:
             raise RunDirError(f"{str(run_dir)!r} has no checkpoint to resume from")

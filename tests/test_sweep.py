@@ -45,6 +45,12 @@ def test_grid_refuses_unknown_and_unsweepable_keys_before_compiling(tmp_path):
     assert sweep.main(["--config", _easy_yaml(), "--grid", "agent.nope=1,2", "--run-dir", str(d)]) == cli.EXIT_CONFIG
     assert sweep.main(["--run-dir", str(d), "--resume"]) == cli.EXIT_CONFIG
     assert not d.exists()  # nothing written, nothing compiled
+    d.mkdir()
+    (d / sweep.SWEEP_FILE).write_text("{}")
+    assert sweep.main(["--config", _easy_yaml(), "--grid", "agent.tau=0.1", "--run-dir", str(d)]) == cli.EXIT_CONFIG
+    with pytest.raises(cli.RunDirError, match="is a sweep.*cannot be resumed"):
+        cli._resolve(cli.build_parser().parse_args(["--run-dir", str(d), "--resume"]))
+    assert cli.main(["--run-dir", str(d), "--resume"]) == cli.EXIT_CONFIG
 
 
 def test_plan_groups_traced_keys_into_one_program_and_shapes_into_several():
