@@ -393,7 +393,7 @@ def plot_sweep_curves(run_dir, grid: dict) -> list[Path]:
                 x, mean, std, n = aggregate_curves(pooled)
                 if n == 0:
                     continue
-                ax.plot(x, mean, color=f"C{i}", label=f"{key}={value} (n={n})")
+                ax.plot(x, mean, color=f"C{i}", label=f"{key}={value} ({n} run{'s' * (n != 1)})")
                 ax.fill_between(x, mean - std, mean + std, color=f"C{i}", alpha=0.2)
             ax.set(xlabel="env steps (per seed)", ylabel=metric.replace("_", " "), ylim=(-0.03, 1.03))
             ax.grid(alpha=0.3)
