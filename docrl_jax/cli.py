@@ -136,6 +136,9 @@ def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
             raise ConfigError("--resume takes the config from the run directory's config.yaml; drop --config "
                               "(use --set to change e.g. train.total_env_steps)")
         run_dir = Path(args.run_dir)
+        if (run_dir / "sweep.json").is_file():  # docrl_jax.sweep.SWEEP_FILE (not imported: no cycle)
+            raise RunDirError(f"{str(run_dir)!r} is a sweep (docrl_jax.sweep): sweeps write no checkpoints and "
+                              f"cannot be resumed; train one combination with --config {run_dir}/cNN/config.yaml")
         read_config(run_dir)  # clear errors for a missing dir or config
         if checkpoint.latest_step(run_dir) is None:
             raise RunDirError(f"{str(run_dir)!r} has no checkpoint to resume from")
@@ -195,76 +198,134 @@ def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
                       for s in seeds])
 
 
-def programs(config: Config):
+def programs(config: Config, traced: bool = False):
     """(init, chunk, evaluate), jitted over the seed axis; the chunk donates its runner state.
     On one device they vmap over the seeds; on several (train.devices, docrl_jax.sharding) they
     take and return arrays sharded over the 'seed' mesh axis (`SeedPlacement.put_seeds`), each
-    device running the same on its own seeds. Raises ConfigError for a bad train.devices."""
+    device running the same on its own seeds. Raises ConfigError for a bad train.devices.
+
+    traced=True (docrl_jax.sweep): init(keys, total, hp) and chunk(state, hp) also take the agent's
+    hyperparameters (`algorithms.HParams`, one float32 per seed row, split over devices like the
+    seeds), so rows that differ only in them run in one program; the config's own values of those
+    fields are then unused (and normalised away, so one compilation serves any such values)."""
     # The programs do not depend on the name, the seed values (keys are arguments), the run length
     # (a runner-state field) or when to evaluate and checkpoint, so one compilation serves them all;
     # memoised so a resume in the same process compiles nothing.
     devices, _ = sharding.seed_devices(config.train)
-    return _programs(_program_config(config), devices)
+    return _programs(_program_config(config, traced), devices, traced)
 
 
-def _program_config(config: Config) -> Config:
+def _program_config(config: Config, traced: bool = False) -> Config:
     """The config with every field that does not shape the compiled programs set to a constant
-    (train.devices too: the device tuple is passed beside it)."""
+    (train.devices too: the device tuple is passed beside it; with `traced`, the HParams fields)."""
+    from docrl_jax.algorithms.common import hparams_neutral
     train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
-                                keep_checkpoints=1, devices=0)
-    return dataclasses.replace(config, name="run", train=train)
+                                keep_checkpoints=1, devices=0, eval_trained_actor=False)
+    agent = hparams_neutral(config.agent) if traced else config.agent
+    return dataclasses.replace(config, name="run", train=train, agent=agent)
+
+
+def _squeeze(tree):
+    return jax.tree.map(lambda x: x[0], tree)
+
+
+def _expand(tree):
+    return jax.tree.map(lambda x: x[None], tree)
 
 
 @functools.lru_cache(maxsize=8)
-def _programs(config: Config, devices: tuple):
+def _programs(config: Config, devices: tuple, traced: bool = False):
     trainer = make_trainer(config)
+    # hp: () for a plain run (the config's constants), (hp,) with a seed axis when traced.
     if config.train.num_seeds // len(devices) > 1:
-        init, chunk, evaluate = (jax.vmap(trainer.init_total, (0, None)), jax.vmap(trainer.chunk),
-                                 jax.vmap(trainer.evaluate))
+        init = jax.vmap(trainer.init_total, (0, None, 0)) if traced else jax.vmap(trainer.init_total, (0, None))
+        chunk = jax.vmap(trainer.chunk)
     else:
         # One seed (per device): run the unbatched program on the seed axis of size 1. Under vmap,
         # lax.cond with a per-seed predicate becomes a select that computes both branches, so the
         # delayed actor update and the pre-learning phase would cost a full update on every step.
-        squeeze = functools.partial(jax.tree.map, lambda x: x[0])
-        expand = functools.partial(jax.tree.map, lambda x: x[None])
-        init = lambda keys, total: expand(trainer.init_total(keys[0], total))  # noqa: E731
-        chunk = lambda state: expand(trainer.chunk(squeeze(state)))  # noqa: E731
-        evaluate = lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))  # noqa: E731
+        init = lambda keys, total, *hp: _expand(trainer.init_total(keys[0], total, *_squeeze(hp)))  # noqa: E731
+        chunk = lambda state, *hp: _expand(trainer.chunk(_squeeze(state), *_squeeze(hp)))  # noqa: E731
+    evaluate = _evaluate_program(config, devices) if traced else None
     if len(devices) == 1:
-        return jax.jit(init), jax.jit(chunk, donate_argnums=0), jax.jit(evaluate)
+        return jax.jit(init), jax.jit(chunk, donate_argnums=0), evaluate or jax.jit(_evaluate_fn(config, devices))
     # Seeds over devices: shard_map gives each device its block of seeds and runs the function above
     # on it alone (no communication); every output keeps the seed axis, sharded the same way.
     mesh = sharding.SeedPlacement(devices).mesh
     seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
     split, replicated = NamedSharding(mesh, seeds), NamedSharding(mesh, whole)
+    hp_spec, hp_shard = ((seeds,), (split,)) if traced else ((), ())
 
     def over_seeds(f, in_specs):
         return jax.shard_map(f, mesh=mesh, in_specs=in_specs, out_specs=seeds, check_vma=False)
-    return (jax.jit(over_seeds(init, (seeds, whole)), in_shardings=(split, replicated), out_shardings=split),
-            jax.jit(over_seeds(chunk, (seeds,)), in_shardings=(split,), out_shardings=split, donate_argnums=0),
-            jax.jit(over_seeds(evaluate, (seeds, seeds)), in_shardings=(split, split), out_shardings=split))
+    return (jax.jit(over_seeds(init, (seeds, whole, *hp_spec)), in_shardings=(split, replicated, *hp_shard),
+                    out_shardings=split),
+            jax.jit(over_seeds(chunk, (seeds, *hp_spec)), in_shardings=(split, *hp_shard), out_shardings=split,
+                    donate_argnums=0),
+            evaluate or _evaluate_program(config, devices))
 
 
-def compiled_programs(config: Config):
-    """`programs(config)` compiled ahead of time, the three at once in threads (XLA compiles them in
-    parallel, which shortens start-up), memoised like `programs`. Returns (init, chunk, evaluate,
-    compile seconds of this call; 0 when memoised)."""
-    key = (_program_config(config), sharding.seed_devices(config.train)[0])
+def _evaluate_fn(config: Config, devices: tuple):
+    trainer = make_trainer(config)
+    if config.train.num_seeds // len(devices) > 1:
+        return jax.vmap(trainer.evaluate)
+    return lambda params, keys: _expand(trainer.evaluate(_squeeze(params), keys[0]))
+
+
+def _evaluate_program(config: Config, devices: tuple):
+    """The evaluation does not read HParams, so a sweep's programs share the plain run's (its key
+    drops the agent's HParams fields; make_trainer of either config builds the same evaluation)."""
+    from docrl_jax.algorithms.common import hparams_neutral
+    return _evaluate_jit(dataclasses.replace(config, agent=hparams_neutral(config.agent)), devices)
+
+
+@functools.lru_cache(maxsize=8)
+def _evaluate_jit(config: Config, devices: tuple):
+    evaluate = _evaluate_fn(config, devices)
+    if len(devices) == 1:
+        return jax.jit(evaluate)
+    mesh = sharding.SeedPlacement(devices).mesh
+    seeds = PartitionSpec(sharding.SEED_AXIS)
+    split = NamedSharding(mesh, seeds)
+    return jax.jit(jax.shard_map(evaluate, mesh=mesh, in_specs=(seeds, seeds), out_specs=seeds, check_vma=False),
+                   in_shardings=(split, split), out_shardings=split)
+
+
+def hparams_abstract(config: Config):
+    """Shapes of the traced programs' `hp` argument: one float32 per seed row and HParams leaf."""
+    from docrl_jax.algorithms.common import HParams
+    n = config.train.num_seeds
+    return jax.tree.map(lambda _: jax.ShapeDtypeStruct((n,), jnp.float32),
+                        HParams.from_agent_config(config.agent))
+
+
+def compiled_programs(config: Config, traced: bool = False):
+    """`programs(config, traced)` compiled ahead of time, the three at once in threads (XLA compiles
+    them in parallel, which shortens start-up), memoised like `programs`. Returns (init, chunk,
+    evaluate, compile seconds of this call; 0 when memoised)."""
+    devices = sharding.seed_devices(config.train)[0]
+    key = (_program_config(config, traced), devices, traced)
     if key in _COMPILED:
         return (*_COMPILED[key], 0.0)
-    init, chunk, evaluate = programs(config)
+    init, chunk, evaluate = programs(config, traced)
     n = config.train.num_seeds
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)
-    abstract = jax.eval_shape(init, keys, total)
+    hp = (hparams_abstract(config),) if traced else ()
+    abstract = jax.eval_shape(init, keys, total, *hp)
+    # The evaluation of a traced program is the plain one's (_evaluate_program): compiled once.
+    eval_key = (_program_config(config, True), devices, "evaluate")
     t0 = time.time()
     with ThreadPoolExecutor(3) as pool:
-        jobs = [pool.submit(lambda: init.lower(keys, total).compile()),
-                pool.submit(lambda: chunk.lower(abstract).compile()),
-                pool.submit(lambda: evaluate.lower(abstract.agent.actor_average, keys).compile())]
-        compiled = tuple(j.result() for j in jobs)
-    _COMPILED[key] = compiled
-    return (*compiled, time.time() - t0)
+        jobs = [pool.submit(lambda: init.lower(keys, total, *hp).compile()),
+                pool.submit(lambda: chunk.lower(abstract, *hp).compile())]
+        if eval_key not in _COMPILED:
+            jobs.append(pool.submit(lambda: evaluate.lower(abstract.agent.actor_average, keys).compile()))
+        compiled = [j.result() for j in jobs]
+    if eval_key not in _COMPILED:
+        _COMPILED[eval_key] = compiled.pop()
+    _COMPILED[key] = (*compiled, _COMPILED[eval_key])
+    return (*_COMPILED[key], time.time() - t0)
 
 
 _COMPILED: dict = {}
@@ -351,33 +412,9 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         trained = {}
         if t_cfg.eval_trained_actor and config.agent.policy_average_tau < 1.0:
             trained = placement.get(evaluate(state.agent.actor, keys))  # same episodes, the trained actor
-        updates = placement.get(state.agent.updates)
-        rows = []
-        for i, seed in enumerate(seeds):
-            p = {k: v[i] for k, v in pending.items()}
-            eps = p["episodes"]
-            learn = p["learn_iters"]
-            row = {"env_steps": steps, "wall_time_s": round(wall(), 3), "seed": seed,
-                   "success_rate": float(ev["success_rate"][i]), "episode_return": float(ev["episode_return"][i]),
-                   "success_air_to_water": float(ev.get("success_air_to_water", [math.nan] * len(seeds))[i]),
-                   "success_water_to_air": float(ev.get("success_water_to_air", [math.nan] * len(seeds))[i]),
-                   "train_episode_return": p["return_sum"] / eps if eps else math.nan,
-                   "train_success_rate": p["success_sum"] / eps if eps else math.nan,
-                   "train_episodes": int(eps),
-                   "critic_loss": p["critic_loss"] / learn if learn else math.nan,
-                   "actor_loss": p["actor_loss"] / learn if learn else math.nan,
-                   "alpha": p["alpha"] / learn if learn and config.agent.algo == "sac" else math.nan,
-                   "q": p["q"] / learn if learn else math.nan,
-                   "policy_freq": p["policy_freq"] / learn if learn else math.nan,
-                   "grad_updates": int(updates[i])}
-            for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
-                row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
-            rows.append(row)
+        rows = eval_rows(config, seeds, steps, wall(), pending, ev, trained, placement.get(state.agent.updates))
         if primary:
-            with open(metrics_path, "a", newline="") as fh:
-                w = csv.DictWriter(fh, METRIC_COLUMNS)
-                for row in rows:
-                    w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+            append_rows(metrics_path, rows)
         for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air"):
             if k in ev:
                 writer.add_scalar(f"eval/{k}", float(np.mean(ev[k])), steps)
@@ -443,6 +480,43 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     if status == EXIT_OK:
         console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")
     return status
+
+
+def eval_rows(config: Config, seeds: list[int], steps: int, wall_s: float, pending: dict, ev: dict,
+              trained: dict, updates) -> list[dict]:
+    """metrics.csv rows (METRIC_COLUMNS) of one evaluation, one per seed row: the evaluation `ev`
+    (and `trained`, the trained actor's, or {}), the training statistics accumulated in `pending`
+    since the last evaluation, and the gradient updates done."""
+    rows = []
+    for i, seed in enumerate(seeds):
+        p = {k: v[i] for k, v in pending.items()}
+        eps = p["episodes"]
+        learn = p["learn_iters"]
+        row = {"env_steps": steps, "wall_time_s": round(wall_s, 3), "seed": seed,
+               "success_rate": float(ev["success_rate"][i]), "episode_return": float(ev["episode_return"][i]),
+               "success_air_to_water": float(ev.get("success_air_to_water", [math.nan] * len(seeds))[i]),
+               "success_water_to_air": float(ev.get("success_water_to_air", [math.nan] * len(seeds))[i]),
+               "train_episode_return": p["return_sum"] / eps if eps else math.nan,
+               "train_success_rate": p["success_sum"] / eps if eps else math.nan,
+               "train_episodes": int(eps),
+               "critic_loss": p["critic_loss"] / learn if learn else math.nan,
+               "actor_loss": p["actor_loss"] / learn if learn else math.nan,
+               "alpha": p["alpha"] / learn if learn and config.agent.algo == "sac" else math.nan,
+               "q": p["q"] / learn if learn else math.nan,
+               "policy_freq": p["policy_freq"] / learn if learn else math.nan,
+               "grad_updates": int(updates[i])}
+        for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
+            row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
+        rows.append(row)
+    return rows
+
+
+def append_rows(path: Path, rows: list[dict], columns: list[str] = METRIC_COLUMNS) -> None:
+    """Appends rows to a metrics CSV (floats to 6 significant digits)."""
+    with open(path, "a", newline="") as fh:
+        w = csv.DictWriter(fh, columns)
+        for row in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
 
 
 class _NoWriter:

@@ -4,6 +4,8 @@ and running the LSTM actor over sampled sequences with burn-in."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import Any, Callable, NamedTuple
 
 import jax
@@ -29,14 +31,72 @@ class AgentState:
     updates: jax.Array       # () int32 critic updates done
 
 
+@struct.dataclass
+class HParams:
+    """The agent's hyperparameters that shape no array: what `docrl_jax.sweep` passes as traced
+    inputs, so that runs differing only in them share one compiled program.
+
+    Each leaf is the exact constant the update uses, computed on the host in double precision
+    (e.g. `tau_keep` = 1 - tau, `discounts` = gamma ** k): built from a config with Python floats
+    (`from_agent_config`), the default path constant-folds the same numbers it did before; stacked
+    into float32 arrays (`stack`), a traced program computes with bit-identical values."""
+    actor_lr: Any
+    critic_lr: Any
+    alpha_lr: Any
+    lr_decay: Any            # lr_end_scale - 1: the rate multiplier is 1 + lr_decay * progress
+    gamma: Any
+    discounts: tuple         # gamma ** k, k = 0 .. n_step (n-step targets)
+    tau: Any
+    tau_keep: Any            # 1 - tau
+    average_tau: Any         # policy_average_tau
+    average_keep: Any        # 1 - policy_average_tau
+    policy_noise: Any
+    noise_clip: Any
+    ou_theta: Any
+    ou_sigma: Any
+    ou_sigma_delta: Any      # ou_sigma_final - ou_sigma
+    target_entropy: Any
+    log_init_alpha: Any
+
+    @staticmethod
+    def from_agent_config(a) -> "HParams":
+        return HParams(actor_lr=a.actor_lr, critic_lr=a.critic_lr, alpha_lr=a.alpha_lr, lr_decay=a.lr_end_scale - 1.0,
+                       gamma=a.gamma, discounts=tuple(a.gamma ** k for k in range(a.n_step + 1)), tau=a.tau,
+                       tau_keep=1.0 - a.tau, average_tau=a.policy_average_tau, average_keep=1.0 - a.policy_average_tau,
+                       policy_noise=a.policy_noise, noise_clip=a.noise_clip, ou_theta=a.ou_theta, ou_sigma=a.ou_sigma,
+                       ou_sigma_delta=a.ou_sigma_final - a.ou_sigma, target_entropy=a.target_entropy,
+                       log_init_alpha=math.log(a.init_alpha))
+
+    @staticmethod
+    def stack(hparams: list["HParams"]) -> "HParams":
+        """One float32 array per leaf, the runs on the leading axis (rounded once, from double)."""
+        import numpy as np
+        return jax.tree.map(lambda *xs: np.asarray(xs, np.float64).astype(np.float32), *hparams)
+
+
+# The config keys HParams carries (docrl_jax.sweep traces these).
+HPARAM_KEYS = ("actor_lr", "critic_lr", "alpha_lr", "lr_end_scale", "gamma", "tau", "policy_average_tau",
+               "policy_noise", "noise_clip", "ou_theta", "ou_sigma", "ou_sigma_final", "target_entropy", "init_alpha")
+
+
+def hparams_neutral(agent_config):
+    """The agent config with every HPARAM_KEYS field at its schema default: two configs that differ
+    only in those fields become equal (one traced program serves both)."""
+    from docrl_jax.config import AgentConfig
+    defaults = AgentConfig()
+    return dataclasses.replace(agent_config, **{k: getattr(defaults, k) for k in HPARAM_KEYS})
+
+
 class Agent(NamedTuple):
-    """What the trainer needs from an algorithm; every function is pure."""
+    """What the trainer needs from an algorithm; every function is pure. `hp` (HParams) defaults
+    to `hparams`, the config's values as Python constants; a sweep passes traced ones."""
     actor: Any                                   # flax module: carry, out = actor.apply(params, carry, obs)
-    init: Callable                               # key -> AgentState
+    init: Callable                               # (key, hp=None) -> AgentState
     init_noise: Callable                         # num_envs -> exploration-noise state
-    explore: Callable                            # (state, carry, noise, obs, start, key, progress) -> (carry, noise, action)
+    explore: Callable                            # (state, carry, noise, obs, start, key, progress, hp=None) -> (carry, noise, action)
     act: Callable                                # (actor_params, carry, obs) -> (carry, action), deterministic
-    update: Callable                             # (state, batch, key, progress) -> (state, metrics)
+    update: Callable                             # (state, batch, key, progress, hp=None) -> (state, metrics)
+    hparams: HParams = None                      # the config's values (Python floats)
 
 
 def policy_freq(fixed: int, progress: jax.Array) -> jax.Array:
@@ -51,8 +111,10 @@ def policy_freq(fixed: int, progress: jax.Array) -> jax.Array:
     return jnp.floor(1.0 / (0.5 - p / 3.0) + 1e-6).astype(jnp.int32)
 
 
-def soft_update(target, online, tau: float):
-    return jax.tree.map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
+def soft_update(target, online, tau: float, keep=None):
+    """(1 - tau) target + tau online; `keep` is 1 - tau when given (HParams holds it, exact)."""
+    keep = 1.0 - tau if keep is None else keep
+    return jax.tree.map(lambda t, o: keep * t + tau * o, target, online)
 
 
 def masked_mean(x: jax.Array, mask: jax.Array) -> jax.Array:
@@ -98,7 +160,7 @@ def run_actor(actor, params, seq: SeqBatch, memory: bool):
     return outs, carries_after
 
 
-def nstep_targets(reward, terminated, truncated, bootstrap, gamma: float, n: int):
+def nstep_targets(reward, terminated, truncated, bootstrap, gamma: float, n: int, discounts=None):
     """n-step TD targets inside one sampled window of trained steps (time on axis 0, [T, B]).
 
     bootstrap[t] is the value of step t's next obs (min of the target critics at the next action,
@@ -108,10 +170,12 @@ def nstep_targets(reward, terminated, truncated, bootstrap, gamma: float, n: int
     bootstraps from its true final obs. So no return crosses an episode boundary or the window end
     (the last steps of a window use fewer than n rewards), and n = 1 is the one-step target
         y_t = r_t + gamma (1 - terminated_t) bootstrap_t.
-    The rewards come from the behaviour policy, uncorrected, as in D4PG, R2D2 and FastTD3."""
+    The rewards come from the behaviour policy, uncorrected, as in D4PG, R2D2 and FastTD3.
+    `discounts` (gamma ** k for k = 0 .. n, HParams.discounts) replaces the powers of gamma when given."""
+    g = [gamma ** k for k in range(n + 1)] if discounts is None else discounts
     not_term = 1.0 - terminated.astype(jnp.float32)
     if n == 1:
-        return reward + gamma * not_term * bootstrap
+        return reward + g[1] * not_term * bootstrap
     T = reward.shape[0]
     done = terminated | truncated
     t_index = jnp.arange(T).reshape((T,) + (1,) * (reward.ndim - 1))
@@ -124,9 +188,9 @@ def nstep_targets(reward, terminated, truncated, bootstrap, gamma: float, n: int
     running = jnp.ones(reward.shape, bool)
     for k in range(n):
         valid = running & (t_index + k < T)
-        partial = partial + jnp.where(valid, gamma ** k * shift(reward, k), 0.0)
+        partial = partial + jnp.where(valid, g[k] * shift(reward, k), 0.0)
         stop = valid & (shift(done, k) | (k == n - 1) | (t_index + k == T - 1))
-        boot = gamma ** (k + 1) * shift(not_term, k) * shift(bootstrap, k)
+        boot = g[k + 1] * shift(not_term, k) * shift(bootstrap, k)
         target = target + jnp.where(stop, partial + boot, 0.0)
         running = valid & ~stop
     return target
@@ -136,7 +200,12 @@ def lr_scale(end_scale: float, progress: jax.Array) -> jax.Array:
     """Learning-rate multiplier: 1 at the start of training, falling linearly in env-step progress to
     `end_scale` at the end (1 = constant, the paper's). A decayed rate lets the final policy settle
     instead of swinging between consecutive evaluations."""
-    return 1.0 + (end_scale - 1.0) * jnp.clip(progress, 0.0, 1.0)
+    return lr_scale_delta(end_scale - 1.0, progress)
+
+
+def lr_scale_delta(decay, progress: jax.Array) -> jax.Array:
+    """`lr_scale` from decay = end_scale - 1 (HParams.lr_decay)."""
+    return 1.0 + decay * jnp.clip(progress, 0.0, 1.0)
 
 
 def adam(lr: float) -> optax.GradientTransformation:
@@ -155,10 +224,15 @@ def init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_t
                       alpha_opt=alpha_tx.init(log_alpha), updates=jnp.zeros((), jnp.int32))
 
 
-def apply_gradients(tx: optax.GradientTransformation, grads, opt_state, params, scale=1.0):
+def apply_gradients(tx: optax.GradientTransformation, grads, opt_state, params, scale=1.0, lr=None):
     """One optimiser step: (new params, new optimiser state). `scale` multiplies the step, which for
-    Adam is exactly a learning rate times `scale` (the decay of `lr_scale`) with the same state."""
+    Adam is exactly a learning rate times `scale` (the decay of `lr_scale`) with the same state.
+    `lr` (with tx = adam(1.0)) is the learning rate, a Python float or a traced value: adam(1.0)
+    negates Adam's direction exactly, so (-d * lr) * scale has the bits adam(lr)'s (d * -lr) * scale
+    had, and the optimiser state's layout (hence checkpoints) is the one adam(lr) has."""
     updates, opt_state = tx.update(grads, opt_state, params)
+    if lr is not None:
+        updates = jax.tree.map(lambda u: u * lr, updates)
     updates = jax.tree.map(lambda u: u * scale, updates)
     return optax.apply_updates(params, updates), opt_state
 

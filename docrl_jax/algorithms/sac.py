@@ -18,8 +18,8 @@ import math
 import jax
 import jax.numpy as jnp
 
-from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, apply_gradients,
-                                         critic_regression, init_agent_state, lr_scale, masked_mean,
+from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients,
+                                         critic_regression, init_agent_state, lr_scale_delta, masked_mean,
                                          nstep_targets, policy_freq, run_actor, soft_update, split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
@@ -36,14 +36,15 @@ def sample_action(mean, log_std, eps):
     return a, logp
 
 
-def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, eps, a_cfg, memory):
+def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, eps, a_cfg, memory, hp=None):
+    hp = HParams.from_agent_config(a_cfg) if hp is None else hp
     alpha = jnp.exp(state.log_alpha)
     _, carries_after = run_actor(actor, jax.lax.stop_gradient(state.actor), seq, memory)
     _, (mean, log_std) = actor.apply(state.actor, carries_after, seq.next_obs)
     next_a, next_logp = sample_action(mean, log_std, eps)
     q_next = jnp.min(critic.apply(state.critic_target, seq.next_obs, next_a), axis=0) - alpha * next_logp
-    y = jax.lax.stop_gradient(nstep_targets(seq.reward, seq.terminated, seq.truncated, q_next, a_cfg.gamma,
-                                            a_cfg.n_step))
+    y = jax.lax.stop_gradient(nstep_targets(seq.reward, seq.terminated, seq.truncated, q_next, hp.gamma,
+                                            a_cfg.n_step, hp.discounts))
     q = critic.apply(critic_params, seq.obs, seq.action)
     return critic_regression(q, y, seq.mask), {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
 
@@ -63,11 +64,14 @@ def make_sac(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.memory and config.agent.actor == "lstm"
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=True)
     critic = Critic(hidden=a_cfg.critic_hidden, num=2, layer_norm=a_cfg.critic_layer_norm)
-    actor_tx, critic_tx, alpha_tx = adam(a_cfg.actor_lr), adam(a_cfg.critic_lr), adam(a_cfg.alpha_lr)
+    # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
+    actor_tx = critic_tx = alpha_tx = adam(1.0)
     burn_in = config.replay.burn_in
+    hparams = HParams.from_agent_config(a_cfg)
 
-    def init(key):
-        log_alpha = jnp.asarray(math.log(a_cfg.init_alpha), jnp.float32)
+    def init(key, hp=None):
+        hp = hparams if hp is None else hp
+        log_alpha = jnp.asarray(hp.log_init_alpha, jnp.float32)
         return init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx)
 
     def init_noise(num_envs):
@@ -78,31 +82,33 @@ def make_sac(config: Config) -> Agent:
         carry, (mean, _) = actor.apply(actor_params, carry, obs)
         return carry, jnp.tanh(mean)
 
-    def explore(state, carry, noise, obs, start, key, progress):
+    def explore(state, carry, noise, obs, start, key, progress, hp=None):
         carry, (mean, log_std) = actor.apply(state.actor, carry, obs)
         action, _ = sample_action(mean, log_std, jax.random.normal(key, mean.shape))
         return carry, noise, action
 
-    def update(state: AgentState, batch: dict, key, progress):
+    def update(state: AgentState, batch: dict, key, progress, hp=None):
+        hp = hparams if hp is None else hp
         seq = split_batch(batch, burn_in)
         k_next, k_pi = jax.random.split(key)
         eps_next = jax.random.normal(k_next, seq.action.shape)
         eps_pi = jax.random.normal(k_pi, seq.action.shape)
-        scale = lr_scale(a_cfg.lr_end_scale, progress)
+        scale = lr_scale_delta(hp.lr_decay, progress)
         (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
-            state.critic, critic, actor, state, seq, eps_next, a_cfg, memory)
-        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic, scale)
+            state.critic, critic, actor, state, seq, eps_next, a_cfg, memory, hp)
+        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic, scale,
+                                                    hp.critic_lr)
         state = state.replace(critic=critic_params, critic_opt=critic_opt, updates=state.updates + 1)
 
         def policy_step(s: AgentState):
             (a_loss, logp), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
                 s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, memory)
-            actor_params, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale)
-            al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, a_cfg.target_entropy, seq.mask)
-            log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha)
+            actor_params, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale, hp.actor_lr)
+            al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, hp.target_entropy, seq.mask)
+            log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha, lr=hp.alpha_lr)
             s = s.replace(actor=actor_params, actor_opt=actor_opt, log_alpha=log_alpha, alpha_opt=alpha_opt,
-                          actor_average=soft_update(s.actor_average, actor_params, a_cfg.policy_average_tau),
-                          critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
+                          actor_average=soft_update(s.actor_average, actor_params, hp.average_tau, hp.average_keep),
+                          critic_target=soft_update(s.critic_target, s.critic, hp.tau, hp.tau_keep))
             return s, (a_loss, al_loss)
 
         freq = policy_freq(a_cfg.policy_freq, progress)
@@ -114,4 +120,5 @@ def make_sac(config: Config) -> Agent:
                    "actor_updated": do_policy.astype(jnp.float32)}
         return state, metrics
 
-    return Agent(actor=actor, init=init, init_noise=init_noise, explore=explore, act=act, update=update)
+    return Agent(actor=actor, init=init, init_noise=init_noise, explore=explore, act=act, update=update,
+                 hparams=hparams)

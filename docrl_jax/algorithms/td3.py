@@ -17,25 +17,27 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from docrl_jax.algorithms.common import (Agent, AgentState, SeqBatch, adam, apply_gradients,
-                                         critic_regression, init_agent_state, lr_scale, masked_mean,
+from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients,
+                                         critic_regression, init_agent_state, lr_scale_delta, masked_mean,
                                          nstep_targets, policy_freq, run_actor, soft_update, split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import Critic, make_actor
 
 
-def target_values(critic, critic_target_params, next_action, seq: SeqBatch, noise, a_cfg):
-    """TD targets y [T, B] from the target actor's raw next actions and a standard-normal `noise` sample."""
-    smooth = jnp.clip(a_cfg.policy_noise * noise, -a_cfg.noise_clip, a_cfg.noise_clip)
+def target_values(critic, critic_target_params, next_action, seq: SeqBatch, noise, a_cfg, hp=None):
+    """TD targets y [T, B] from the target actor's raw next actions and a standard-normal `noise`
+    sample; `hp` (HParams) defaults to a_cfg's values."""
+    hp = HParams.from_agent_config(a_cfg) if hp is None else hp
+    smooth = jnp.clip(hp.policy_noise * noise, -hp.noise_clip, hp.noise_clip)
     next_action = jnp.clip(next_action + smooth, -1.0, 1.0)
     q_next = jnp.min(critic.apply(critic_target_params, seq.next_obs, next_action), axis=0)
-    return nstep_targets(seq.reward, seq.terminated, seq.truncated, q_next, a_cfg.gamma, a_cfg.n_step)
+    return nstep_targets(seq.reward, seq.terminated, seq.truncated, q_next, hp.gamma, a_cfg.n_step, hp.discounts)
 
 
-def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, noise, a_cfg, memory):
+def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, noise, a_cfg, memory, hp=None):
     next_raw, _ = _target_next_action(actor, state.actor_target, seq, memory)
-    y = jax.lax.stop_gradient(target_values(critic, state.critic_target, next_raw, seq, noise, a_cfg))
+    y = jax.lax.stop_gradient(target_values(critic, state.critic_target, next_raw, seq, noise, a_cfg, hp))
     q = critic.apply(critic_params, seq.obs, seq.action)                     # [num, T, B]
     return critic_regression(q, y, seq.mask), {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
 
@@ -56,10 +58,12 @@ def make_td3(config: Config) -> Agent:
     ddpg = a_cfg.algo == "ddpg"
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=False)
     critic = Critic(hidden=a_cfg.critic_hidden, num=1 if ddpg else 2, layer_norm=a_cfg.critic_layer_norm)
-    actor_tx, critic_tx = adam(a_cfg.actor_lr), adam(a_cfg.critic_lr)
+    # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
+    actor_tx = critic_tx = adam(1.0)
     burn_in = config.replay.burn_in
+    hparams = HParams.from_agent_config(a_cfg)
 
-    def init(key):  # TD3/DDPG have no temperature: a constant log_alpha with a frozen optimiser
+    def init(key, hp=None):  # TD3/DDPG have no temperature: a constant log_alpha with a frozen optimiser
         return init_agent_state(key, actor, critic, actor_tx, critic_tx, jnp.zeros(()), adam(0.0))
 
     def init_noise(num_envs):
@@ -68,30 +72,33 @@ def make_td3(config: Config) -> Agent:
     def act(actor_params, carry, obs):
         return actor.apply(actor_params, carry, obs)
 
-    def explore(state, carry, noise, obs, start, key, progress):
+    def explore(state, carry, noise, obs, start, key, progress, hp=None):
         """OU noise (orig 5.1): x <- x + theta (0 - x) + sigma N(0, 1), zeroed at episode start."""
+        hp = hparams if hp is None else hp
         carry, action = act(state.actor, carry, obs)
-        sigma = a_cfg.ou_sigma + (a_cfg.ou_sigma_final - a_cfg.ou_sigma) * jnp.clip(progress, 0.0, 1.0)
+        sigma = hp.ou_sigma + hp.ou_sigma_delta * jnp.clip(progress, 0.0, 1.0)
         noise = jnp.where(start[:, None], 0.0, noise)
-        noise = noise - a_cfg.ou_theta * noise + sigma * jax.random.normal(key, noise.shape)
+        noise = noise - hp.ou_theta * noise + sigma * jax.random.normal(key, noise.shape)
         return carry, noise, jnp.clip(action + noise, -1.0, 1.0)
 
-    def update(state: AgentState, batch: dict, key, progress):
+    def update(state: AgentState, batch: dict, key, progress, hp=None):
+        hp = hparams if hp is None else hp
         seq = split_batch(batch, burn_in)
         noise = jax.random.normal(key, seq.action.shape) if not ddpg else jnp.zeros(seq.action.shape)
-        scale = lr_scale(a_cfg.lr_end_scale, progress)
+        scale = lr_scale_delta(hp.lr_decay, progress)
         (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
-            state.critic, critic, actor, state, seq, noise, a_cfg, memory)
-        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic, scale)
+            state.critic, critic, actor, state, seq, noise, a_cfg, memory, hp)
+        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic, scale,
+                                                    hp.critic_lr)
         state = state.replace(critic=critic_params, critic_opt=critic_opt, updates=state.updates + 1)
 
         def policy_step(s: AgentState):
             a_loss, a_grads = jax.value_and_grad(actor_loss)(s.actor, actor, critic, s.critic, seq, memory)
-            new_actor, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale)
+            new_actor, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale, hp.actor_lr)
             s = s.replace(actor=new_actor, actor_opt=actor_opt,
-                          actor_average=soft_update(s.actor_average, new_actor, a_cfg.policy_average_tau),
-                          actor_target=soft_update(s.actor_target, new_actor, a_cfg.tau),
-                          critic_target=soft_update(s.critic_target, s.critic, a_cfg.tau))
+                          actor_average=soft_update(s.actor_average, new_actor, hp.average_tau, hp.average_keep),
+                          actor_target=soft_update(s.actor_target, new_actor, hp.tau, hp.tau_keep),
+                          critic_target=soft_update(s.critic_target, s.critic, hp.tau, hp.tau_keep))
             return s, a_loss
 
         freq = policy_freq(a_cfg.policy_freq, progress)
@@ -101,4 +108,5 @@ def make_td3(config: Config) -> Agent:
                    "actor_updated": do_policy.astype(jnp.float32)}
         return state, metrics
 
-    return Agent(actor=actor, init=init, init_noise=init_noise, explore=explore, act=act, update=update)
+    return Agent(actor=actor, init=init, init_noise=init_noise, explore=explore, act=act, update=update,
+                 hparams=hparams)

@@ -70,8 +70,8 @@ class Trainer(NamedTuple):
     steps_per_chunk: int
     total_env_steps: int     # total_env_steps rounded up to whole chunks
     init: Callable           # key -> RunnerState (one seed)
-    init_total: Callable     # (key, total_steps) -> RunnerState (one seed)
-    chunk: Callable          # RunnerState -> (RunnerState, chunk metrics) (one seed)
+    init_total: Callable     # (key, total_steps, hp=None) -> RunnerState (one seed)
+    chunk: Callable          # (RunnerState, hp=None) -> (RunnerState, chunk metrics) (one seed)
     train: Callable          # key -> (RunnerState, metrics stacked over chunks) (one seed)
     evaluate: Callable       # (actor_params, key) -> eval metrics (one seed)
     init_carry: Callable     # batch_shape -> zero actor carry
@@ -104,18 +104,20 @@ def make_trainer(config: Config) -> Trainer:
     def init(key) -> RunnerState:
         return init_total(key, total)
 
-    def init_total(key, total_steps) -> RunnerState:
+    # `hp` (algorithms.HParams): None = the config's values as constants (a plain run); a sweep
+    # (docrl_jax.sweep) passes them as traced inputs, one set per seed row.
+    def init_total(key, total_steps, hp=None) -> RunnerState:
         k_agent, k_env, k_run = jax.random.split(key, 3)
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, n))
         example = _buffer_step(env_state.obs[0], jnp.zeros(3), jnp.zeros(()), env_state.obs[0], jnp.zeros((), bool),
                                jnp.zeros((), bool), jnp.zeros((), bool), init_carry())
-        return RunnerState(agent=agent.init(k_agent), buffer=buffer.init(example), env=env_state,
+        return RunnerState(agent=agent.init(k_agent, hp), buffer=buffer.init(example), env=env_state,
                            carry=init_carry((n,)), noise=agent.init_noise(n), start=jnp.ones(n, bool),
                            ep_return=jnp.zeros(n), ep_arrivals=jnp.zeros(n, jnp.int32),
                            env_steps=jnp.zeros((), jnp.int32),
                            total_steps=jnp.asarray(total_steps, jnp.int32), key=k_run)
 
-    def chunk(rs: RunnerState):
+    def chunk(rs: RunnerState, hp=None):
         def iteration(rs: RunnerState, _):
             key, k_act, k_rand, k_upd = jax.random.split(rs.key, 4)
             progress = rs.env_steps.astype(jnp.float32) / rs.total_steps.astype(jnp.float32)
@@ -126,7 +128,8 @@ def make_trainer(config: Config) -> Trainer:
                 carry_in = jax.tree.map(lambda z, c: jnp.where(_bcast(rs.start, c), z, c), zero, rs.carry)
             else:
                 carry_in = zero
-            carry, noise, action = agent.explore(rs.agent, carry_in, rs.noise, rs.env.obs, rs.start, k_act, progress)
+            carry, noise, action = agent.explore(rs.agent, carry_in, rs.noise, rs.env.obs, rs.start, k_act, progress,
+                                                hp)
             random_phase = rs.env_steps < t.start_steps
             uniform = jax.random.uniform(k_rand, action.shape, minval=-1.0, maxval=1.0)
             action = jnp.where(random_phase, uniform, action)
@@ -151,7 +154,7 @@ def make_trainer(config: Config) -> Trainer:
             def updates(agent_state, key):
                 def one(a, k):
                     k_sample, k_loss = jax.random.split(k)
-                    return agent.update(a, buffer.sample(buf, k_sample), k_loss, progress)
+                    return agent.update(a, buffer.sample(buf, k_sample), k_loss, progress, hp)
                 agent_state, m = jax.lax.scan(one, agent_state, jax.random.split(key, t.updates_per_step))
                 return agent_state, _update_summary(m)
 
