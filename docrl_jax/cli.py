@@ -469,7 +469,13 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
             progress.update(task, completed=env_steps, sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s")
             panel.line = _stats_line(m, last_eval)
             if not show_progress:
-                console.print(f"{env_steps:,} steps  {_stats_line(m, last_eval)}")
+                # At this chunk's pace, evaluations excluded; before every iteration of a chunk learns
+                # (train.start_steps) the pace is far faster than the run's, so no ETA yet.
+                learning = int(np.min(m["learn_iters"])) >= trainer.iters_per_chunk
+                eta = f"ETA {_duration((trainer.num_chunks - done_chunks) * dt)}" if learning else \
+                    "ETA once learning starts"
+                console.print(f"{env_steps:,} steps  {trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s  "
+                              f"{eta}  {_stats_line(m, last_eval)}")
             if stop and not final:
                 console.print(f"interrupted: checkpoint saved at env step {env_steps}; resume with "
                               f"--run-dir {run_dir} --resume")
@@ -576,6 +582,14 @@ def _stats_line(m: dict, last_eval: dict) -> str:
     if "alpha" in m:
         parts.append(f"alpha {float(np.mean(m['alpha'])):.3g}")
     return "  ".join(parts)
+
+
+def _duration(seconds: float) -> str:
+    """'1 h 05 min', '4 min 10 s', '12 s' (the --no-progress line's ETA)."""
+    s = int(round(seconds))
+    if s >= 3600:
+        return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    return f"{s // 60} min {s % 60:02d} s" if s >= 60 else f"{s} s"
 
 
 def _truncate_csv(path: Path, env_steps: int) -> None:

@@ -35,9 +35,12 @@ def test_auto_sizes_resolve_per_backend_and_say_so():
     gpu = config_from_dict(raw, backend="gpu", notes=notes)
     assert gpu.env.num_envs == cfg.AUTO_NUM_ENVS["gpu"] == 4096
     assert gpu.replay.buffer_size == 4096 * cfg.AUTO_STEPS_PER_ENV["gpu"]
+    assert gpu.train.log_every == 4096 * 100 == 409_600  # the chunk every GPU measurement used
     assert any("num_envs auto -> 4,096" in n for n in notes) and any("buffer_size auto" in n for n in notes)
+    assert any("log_every auto -> 409,600" in n for n in notes)
     cpu = config_from_dict(raw, backend="cpu")
     assert cpu.env.num_envs == 64 and cpu.replay.buffer_size == 64 * cfg.AUTO_STEPS_PER_ENV["cpu"]
+    assert cpu.train.log_every == 64 * cfg.AUTO_ITERS_PER_CHUNK["cpu"]  # a progress line within a minute
     # An explicit size wins over auto, and a bad word names the choices.
     assert load_config("td3_lstm", ["env.num_envs=32"]).env.num_envs == 32
     with pytest.raises(ConfigError, match="num_envs"):

@@ -155,3 +155,8 @@ def test_compile_cache_folder_default_env_flag_and_off(monkeypatch, tmp_path):
         assert cli.enable_compile_cache("off") is None
     finally:
         jax.config.update("jax_compilation_cache_dir", saved)
+
+
+def test_the_no_progress_eta_reads_as_a_duration():
+    from docrl_jax.cli import _duration
+    assert [_duration(s) for s in (12.4, 250, 3600 * 37 + 125)] == ["12 s", "4 min 10 s", "37 h 02 min"]
