@@ -227,39 +227,38 @@ def load_config(name_or_path: str | os.PathLike, overrides: list[str] | dict[str
                             notes=notes)
 
 
+# The `auto` sizes that scale with env.num_envs: (section, key, value per env by backend, the note's
+# explanation of the resolved value).
+_AUTO_PER_ENV = (("replay", "buffer_size", AUTO_STEPS_PER_ENV, "{per} steps x {n:,} envs"),
+                 ("train", "log_every", AUTO_ITERS_PER_CHUNK, "{per} vectorised steps per chunk"))
+
+
 def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = None) -> dict:
     """Replaces `env.num_envs: auto`, `replay.buffer_size: auto` and `train.log_every: auto` by the
     sizes for `backend` (AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV, AUTO_ITERS_PER_CHUNK); returns a new dict."""
-    env, replay, train = raw.get("env"), raw.get("replay"), raw.get("train")
-    wants = (isinstance(env, dict) and env.get("num_envs") == "auto") or \
-        (isinstance(replay, dict) and replay.get("buffer_size") == "auto") or \
-        (isinstance(train, dict) and train.get("log_every") == "auto")
-    if not wants:
+    def is_auto(sec: str, key: str) -> bool:
+        return isinstance(raw.get(sec), dict) and raw[sec].get(key) == "auto"
+
+    if not any(is_auto(sec, key) for sec, key in [("env", "num_envs")] + [a[:2] for a in _AUTO_PER_ENV]):
         return raw
     if backend is None:
         import jax
         backend = jax.default_backend()
     kind = "cpu" if backend == "cpu" else "gpu"
-    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items()}
-    if isinstance(env, dict) and env.get("num_envs") == "auto":
-        raw["env"]["num_envs"] = AUTO_NUM_ENVS[kind]
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in raw.items()}
+    if is_auto("env", "num_envs"):
+        out["env"]["num_envs"] = AUTO_NUM_ENVS[kind]
         if notes is not None:
             notes.append(f"env.num_envs auto -> {AUTO_NUM_ENVS[kind]:,} ({backend})")
-    if isinstance(replay, dict) and replay.get("buffer_size") == "auto":
-        num_envs = raw.get("env", {}).get("num_envs", EnvConfig.num_envs)
-        if isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs > 0:
-            raw["replay"]["buffer_size"] = num_envs * AUTO_STEPS_PER_ENV[kind]
+    num_envs = out.get("env", {}).get("num_envs", EnvConfig.num_envs)
+    if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs > 0):
+        return out  # a bad num_envs is reported by validation; the per-env sizes stay 'auto' (also refused)
+    for sec, key, per_env, why in _AUTO_PER_ENV:
+        if is_auto(sec, key):
+            out[sec][key] = num_envs * per_env[kind]
             if notes is not None:
-                notes.append(f"replay.buffer_size auto -> {raw['replay']['buffer_size']:,} "
-                             f"({AUTO_STEPS_PER_ENV[kind]} steps x {num_envs:,} envs)")
-    if isinstance(train, dict) and train.get("log_every") == "auto":
-        num_envs = raw.get("env", {}).get("num_envs", EnvConfig.num_envs)
-        if isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs > 0:
-            raw["train"]["log_every"] = num_envs * AUTO_ITERS_PER_CHUNK[kind]
-            if notes is not None:
-                notes.append(f"train.log_every auto -> {raw['train']['log_every']:,} "
-                             f"({AUTO_ITERS_PER_CHUNK[kind]} vectorised steps per chunk)")
-    return raw
+                notes.append(f"{sec}.{key} auto -> {out[sec][key]:,} ({why.format(per=per_env[kind], n=num_envs)})")
+    return out
 
 
 def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, check_memory: bool = False,
