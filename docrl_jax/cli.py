@@ -458,7 +458,8 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
                     (run_dir / STARTUP_FILE).write_text(json.dumps(startup, indent=1))
             prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
             _accumulate(pending, m)
-            _log_chunk(writer, m, env_steps, trainer.steps_per_chunk * len(seeds) / dt)
+            sps = trainer.steps_per_chunk * len(seeds) / dt  # env steps/s of all seeds in this chunk
+            _log_chunk(writer, m, env_steps, sps)
             final = done_chunks == trainer.num_chunks
             if final or env_steps // t_cfg.eval_every > prev // t_cfg.eval_every:
                 last_eval = _seed_mean(do_eval(env_steps))
@@ -466,16 +467,16 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
                                                                   chunks_this_call >= stop_after_chunks)
             if final or stop or env_steps // t_cfg.checkpoint_every > prev // t_cfg.checkpoint_every:
                 save(env_steps)
-            progress.update(task, completed=env_steps, sps=f"{trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s")
-            panel.line = _stats_line(m, last_eval)
+            progress.update(task, completed=env_steps, sps=f"{sps:,.0f} steps/s")
+            panel.line = _stats_line(m, last_eval)  # the live panel's line; --no-progress prints it
             if not show_progress:
                 # At this chunk's pace, evaluations excluded; before every iteration of a chunk learns
                 # (train.start_steps) the pace is far faster than the run's, so no ETA yet.
                 learning = int(np.min(m["learn_iters"])) >= trainer.iters_per_chunk
                 eta = f"ETA {_duration((trainer.num_chunks - done_chunks) * dt)}" if learning else \
                     "ETA once learning starts"
-                console.print(f"{env_steps:,} steps  {trainer.steps_per_chunk * len(seeds) / dt:,.0f} steps/s  "
-                              f"{eta}  {_stats_line(m, last_eval)}")
+                console.print(f"{env_steps:,} steps  {sps:,.0f} steps/s  "
+                              f"{eta}  {panel.line}")
             if stop and not final:
                 console.print(f"interrupted: checkpoint saved at env step {env_steps}; resume with "
                               f"--run-dir {run_dir} --resume")
