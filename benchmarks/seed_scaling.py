@@ -15,8 +15,9 @@ median gives
     seed env steps/s = env steps of all seeds per second (num_envs x iterations x seeds / time),
     seed updates/s   = gradient updates of all seeds per second,
 and `efficiency` = (seed env steps/s on D devices) / (D x that on 1 device). Peak memory is the
-largest over the devices used. Writes seed_scaling.json / .md (seed_scaling_smoke.* with --smoke)
-into --out (default benchmarks/results/).
+largest over the devices used. Writes seed_scaling.json / .md / .png (seed_scaling_smoke.* with
+--smoke) into --out (default benchmarks/results/); the figure plots seed env steps/s against the
+device count, one line per (config, num_envs, seeds per device), with perfect scaling dashed.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 SMOKE_DEVICES = 4
 SMOKE_SETS = ["env.max_episode_steps=20", "agent.actor_hidden=[8]", "agent.critic_hidden=[16,16]",
-              "replay.batch_size=8", "replay.seq_len=4", "replay.burn_in=2", "train.eval_episodes=2"]
+              "replay.batch_size=8", "replay.seq_len=4", "replay.burn_in=2", "agent.n_step=2", "train.eval_episodes=2"]
 
 
 def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters: int, repeats: int,
@@ -78,6 +79,32 @@ def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters
             "seed_updates_per_s": round(trainer.iters_per_chunk * upd * num_seeds / med, 1),
             "peak_memory_gib_per_device": round(max(peak) / 2**30, 3) if any(peak) else None,
             "device_kind": placement.devices[0].device_kind, "overrides": overrides}
+
+
+def plot(rows: list[dict], path: str, title: str) -> None:
+    """Seed env steps/s against devices, one line per (config, num_envs, seeds/device); dashed: D x the 1-device rate."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(5.5, 4))
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["config"], r["num_envs"], r["seeds_per_device"]), []).append(r)
+    for (name, n, k), rs in groups.items():
+        rs = sorted(rs, key=lambda r: r["devices"])
+        d = [r["devices"] for r in rs]
+        y = [r["seed_env_steps_per_s"] / 1e6 for r in rs]
+        line, = ax.plot(d, y, "o-", label=f"{name}, {n} envs, {k} seed(s)/device")
+        ax.plot(d, [y[0] * x / d[0] for x in d], "--", color=line.get_color(), alpha=0.5)
+    ax.set_xlabel("devices")
+    ax.set_ylabel("seed env steps/s (millions)")
+    ax.set_xticks(sorted({r["devices"] for r in rows}))
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def main(argv=None) -> int:
@@ -128,6 +155,8 @@ def main(argv=None) -> int:
                     rows.append(row)
                     print(json.dumps(row), flush=True)
                     table = write_results(args.out, stem, "Seeds over devices", meta, rows, columns)
+    plot(rows, os.path.join(args.out, f"{stem}.png"),
+         f"Seeds over devices ({rows[0]['device_kind']}; dashed: perfect scaling)")
     print(table)
     return 0
 
