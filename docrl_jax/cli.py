@@ -251,6 +251,7 @@ def _programs(config: Config, devices: tuple, traced: bool = False):
         return jax.jit(init), jax.jit(chunk, donate_argnums=0), evaluate or jax.jit(_evaluate_fn(config, devices))
     # Seeds over devices: shard_map gives each device its block of seeds and runs the function above
     # on it alone (no communication); every output keeps the seed axis, sharded the same way.
+    sharding.use_gspmd_partitioner()
     mesh = sharding.SeedPlacement(devices).mesh
     seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
     split, replicated = NamedSharding(mesh, seeds), NamedSharding(mesh, whole)

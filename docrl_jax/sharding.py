@@ -135,6 +135,21 @@ def seed_devices(train: TrainConfig) -> tuple[tuple[jax.Device, ...], str | None
     return tuple(dev for ds in by_process for dev in ds[:take]), note
 
 
+def use_gspmd_partitioner() -> None:
+    """Partition the multi-device programs with GSPMD instead of JAX's default, Shardy.
+
+    Why: with jax/jaxlib 0.11.2 on two H200s (CUDA), XLA segfaults while compiling the shard_map'd
+    init program under Shardy (tiny sizes too; autotuning, Triton GEMMs and compile parallelism are
+    not the cause); with JAX_USE_SHARDY_PARTITIONER=0 the same programs compile and run
+    (benchmarks/results/h200x2/README.md). The seed axis needs no partitioning decisions (shard_map,
+    no communication), so the partitioner changes nothing in the numbers. A process-wide JAX flag,
+    set only when a run spans several devices; skipped when this JAX no longer has the option."""
+    try:
+        jax.config.update("jax_use_shardy_partitioner", False)
+    except (AttributeError, KeyError, ValueError):
+        pass
+
+
 @dataclasses.dataclass(frozen=True)
 class SeedPlacement:
     """Where the seed axis lives, and moving values between the host and there.
