@@ -65,6 +65,8 @@ def single(out: Path) -> None:
                  placement.put_replicated(np.int32(192)))
     summary["state_devices"] = sorted({len(leaf.sharding.device_set) for leaf in jax.tree.leaves(state)})
     summary["shard_seeds"] = sorted({leaf.addressable_shards[0].data.shape[0] for leaf in jax.tree.leaves(state)})
+    # Multi-device programs are partitioned by GSPMD (Shardy segfaults XLA's GPU compile, jax 0.11.2).
+    summary["shardy_after_sharded_programs"] = bool(getattr(jax.config, "jax_use_shardy_partitioner", False))
     # Uneven and impossible device counts (resolved, not compiled).
     devices, note = sharding.seed_devices(tiny_config(num_seeds=6).train)
     summary["six_seeds_default"] = [len(devices), note]

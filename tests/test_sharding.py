@@ -170,6 +170,7 @@ def single(runs) -> Path:
 def test_four_devices_match_one_device_and_resume_across_device_counts(single):
     summary = json.loads((single / "summary.json").read_text())
     assert summary["state_devices"] == [4] and summary["shard_seeds"] == [1]  # really one seed per device
+    assert summary["shardy_after_sharded_programs"] is False  # sharding.use_gspmd_partitioner ran
     assert summary["six_seeds_default"][0] == 3 and "using 3 devices" in summary["six_seeds_default"][1]
     assert "valid train.devices for 4 seeds on 4 devices: 'all' or [1, 2, 4]" in summary["three_devices_error"]
     assert summary["eight_devices_status"] == 2 and not (single / "eight").exists()
