@@ -53,6 +53,27 @@ def test_grid_refuses_unknown_and_unsweepable_keys_before_compiling(tmp_path):
     assert cli.main(["--run-dir", str(d), "--resume"]) == cli.EXIT_CONFIG
 
 
+def test_traced_keys_are_exactly_the_config_fields_hparams_reads():
+    """sweep traces HPARAM_KEYS and neutralises them when grouping combinations into programs: a key
+    listed but not read by HParams.from_agent_config would merge combinations that differ in a value
+    compiled into the program; a key read but not listed would split them needlessly."""
+    from docrl_jax.algorithms.common import HPARAM_KEYS, HParams
+    from docrl_jax.config import AgentConfig
+
+    class Recorder:
+        def __init__(self):
+            self.read, self._a = set(), AgentConfig()
+
+        def __getattr__(self, name):
+            self.read.add(name)
+            return getattr(self._a, name)
+
+    rec = Recorder()
+    HParams.from_agent_config(rec)
+    assert rec.read - {"n_step"} == set(HPARAM_KEYS)  # n_step shapes the discount tuple: compiled in
+    assert len(HPARAM_KEYS) == len(set(HPARAM_KEYS))
+
+
 def test_plan_groups_traced_keys_into_one_program_and_shapes_into_several():
     combos, groups = sweep.plan(_easy_yaml(), [], {"agent.actor_lr": [1e-4, 1e-3], "agent.tau": [0.01, 0.02],
                                                    "replay.batch_size": [32, 64]}, 2, check_memory=False)
