@@ -42,7 +42,7 @@ from jax.sharding import NamedSharding, PartitionSpec
 from docrl_jax import checkpoint, sharding
 from docrl_jax.config import Config, ConfigError, load_config, to_yaml
 from docrl_jax.policy import RunDirError
-from docrl_jax.run_dir import CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, TB_DIR, read_config
+from docrl_jax.run_dir import CONFIG_FILE, FAILURE_COLUMNS, METRIC_COLUMNS, METRICS_FILE, TB_DIR, read_config
 from docrl_jax.train import make_trainer
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -416,7 +416,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         rows = eval_rows(config, seeds, steps, wall(), pending, ev, trained, placement.get(state.agent.updates))
         if primary:
             append_rows(metrics_path, rows)
-        for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air"):
+        for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):
             if k in ev:
                 writer.add_scalar(f"eval/{k}", float(np.mean(ev[k])), steps)
         pending = _empty_pending(len(seeds))
@@ -515,6 +515,8 @@ def eval_rows(config: Config, seeds: list[int], steps: int, wall_s: float, pendi
                "grad_updates": int(updates[i])}
         for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
             row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
+        for k in FAILURE_COLUMNS:
+            row[k] = float(ev[k][i]) if k in ev else math.nan
         rows.append(row)
     return rows
 
@@ -595,7 +597,9 @@ def _duration(seconds: float) -> str:
 
 
 def _truncate_csv(path: Path, env_steps: int) -> None:
-    """Drops rows written after the checkpoint being resumed (they will be written again)."""
+    """Drops rows written after the checkpoint being resumed (they will be written again). A file
+    written by an older version with fewer columns gets today's header, its rows re-aligned by
+    column name (the new columns left empty), so the rows appended after the resume line up."""
     if not path.is_file():
         with open(path, "w", newline="") as fh:
             csv.writer(fh).writerow(METRIC_COLUMNS)
@@ -604,6 +608,9 @@ def _truncate_csv(path: Path, env_steps: int) -> None:
         rows = list(csv.reader(fh))
     header, body = rows[0], rows[1:]
     keep = [r for r in body if r and int(float(r[0])) <= env_steps]
+    if header != METRIC_COLUMNS and set(header) <= set(METRIC_COLUMNS):
+        keep = [[dict(zip(header, r)).get(c, "") for c in METRIC_COLUMNS] for r in keep]
+        header = METRIC_COLUMNS
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)

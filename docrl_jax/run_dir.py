@@ -25,11 +25,16 @@ METRICS_FILE = "metrics.csv"
 TB_DIR = "tb"
 
 # metrics.csv: the first five are the evaluator's contract; the rest may grow.
+# Fractions of the paper-pair evaluation episodes (train.eval_paper_pairs) that ended in a collision
+# or out of bounds; with the success fraction, the rest are time-outs. Added 2026-11-23: older runs'
+# metrics.csv lack them, and a resume rewrites the header with them (empty in the old rows).
+FAILURE_COLUMNS = ["collision_air_to_water", "out_of_bounds_air_to_water", "collision_water_to_air",
+                   "out_of_bounds_water_to_air"]
 METRIC_COLUMNS = ["env_steps", "wall_time_s", "seed", "success_rate", "episode_return",
                   "success_air_to_water", "success_water_to_air", "train_episode_return", "train_success_rate",
                   "train_episodes", "critic_loss", "actor_loss", "alpha", "q", "policy_freq", "grad_updates",
                   "trained_actor_success_rate", "trained_actor_success_air_to_water",
-                  "trained_actor_success_water_to_air"]
+                  "trained_actor_success_water_to_air", *FAILURE_COLUMNS]
 
 
 def read_config(run_dir: str | Path) -> Config:

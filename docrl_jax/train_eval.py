@@ -5,7 +5,9 @@ episodes run in parallel with the deterministic policy (TD3/DDPG: actor output; 
 each until the goal is reached (success), a collision or bound ends it, or the step limit
 (env.max_episode_steps) truncates it. Starts and goals follow the training distribution; with
 `train.eval_paper_pairs` the paper's air-to-water and water-to-air pairs (`envs.eval_pair`) are run
-too, with a random start yaw. The full protocol of the paper (100 trials, times in air/water) is the
+too, with a random start yaw, and for each pair the fractions of episodes that ended in a collision
+or out of bounds are reported too (the rest of the failures are time-outs): a direction that stalls
+below 90 % says why in metrics.csv. The full protocol of the paper (100 trials, times in air/water) is the
 evaluator's job, not this module's.
 """
 
@@ -24,22 +26,26 @@ def make_evaluate(config: Config, act, init_carry, memory: bool):
 
     def run(actor_params, states, m):
         """Runs m episodes in parallel until all have ended (at most the step limit); returns
-        per-episode (success, return). Stopping when the last episode ends, instead of always running
+        per-episode (success, collision, out of bounds, return). Stopping when the last episode ends, instead of always running
         the full step limit, makes an evaluation of a trained policy several times cheaper."""
         def body(c):
-            i, st, carry, alive, ret, success = c
+            i, st, carry, alive, ret, success, collision, out = c
             carry = carry if memory else init_carry((m,))
             carry, action = act(actor_params, carry, st.obs)
             st = jax.vmap(env.step)(st, action)
             ret = ret + jnp.where(alive, st.reward, 0.0)
             success = success | (alive & st.info["arrived"])
+            collision = collision | (alive & st.info["collision"])
+            out = out | (alive & st.info["out_of_bounds"] & ~st.info["collision"])  # as the evaluator counts
             alive = alive & ~st.done
-            return i + 1, st, carry, alive, ret, success
+            return i + 1, st, carry, alive, ret, success, collision, out
 
-        init = (jnp.zeros((), jnp.int32), states, init_carry((m,)), jnp.ones(m, bool), jnp.zeros(m),
-                jnp.zeros(m, bool))
-        _, _, _, _, ret, success = jax.lax.while_loop(lambda c: (c[0] < horizon) & jnp.any(c[3]), body, init)
-        return success.astype(jnp.float32), ret
+        no = jnp.zeros(m, bool)
+        init = (jnp.zeros((), jnp.int32), states, init_carry((m,)), jnp.ones(m, bool), jnp.zeros(m), no, no, no)
+        _, _, _, _, ret, success, collision, out = jax.lax.while_loop(lambda c: (c[0] < horizon) & jnp.any(c[3]),
+                                                                      body, init)
+        f32 = lambda x: x.astype(jnp.float32)  # noqa: E731
+        return f32(success), f32(collision), f32(out), ret
 
     def evaluate(actor_params, key):
         k_rand, k_pairs = jax.random.split(key)
@@ -55,8 +61,13 @@ def make_evaluate(config: Config, act, init_carry, memory: bool):
                 names.append(f"success_{direction}")
         # One batch of all groups: the env step is compiled once.
         states = jax.tree.map(lambda *xs: jnp.concatenate(xs), *groups)
-        success, ret = run(actor_params, states, n * len(groups))
-        out = {name: jnp.mean(success[i * n:(i + 1) * n]) for i, name in enumerate(names)}
+        success, collision, oob, ret = run(actor_params, states, n * len(groups))
+        part = lambda x, i: jnp.mean(x[i * n:(i + 1) * n])  # noqa: E731
+        out = {name: part(success, i) for i, name in enumerate(names)}
+        for i, name in enumerate(names[1:], start=1):  # the paper pairs' failures
+            direction = name.removeprefix("success_")
+            out[f"collision_{direction}"] = part(collision, i)
+            out[f"out_of_bounds_{direction}"] = part(oob, i)
         out["episode_return"] = jnp.mean(ret[:n])
         return out
 
