@@ -108,8 +108,10 @@ def run_seed(args, seed: int, cache_dir: str | None, out_dir: str, tag: str) -> 
             "elapsed_s": round(elapsed, 1), "best_success": best, "final": final,
             "final_both_at_target": bool(final["air_to_water"] is not None and final["air_to_water"] >= args.target
                                          and final["water_to_air"] >= args.target),
-            "curve": [{k: r[k] for k in ("env_steps", "wall_time_s", "success_rate", "success_air_to_water",
-                                         "success_water_to_air", "grad_updates")} for r in rows]}
+            "curve": [{k: r.get(k) for k in ("env_steps", "wall_time_s", "success_rate", "success_air_to_water",
+                                             "success_water_to_air", "grad_updates", "collision_air_to_water",
+                                             "out_of_bounds_air_to_water", "collision_water_to_air",
+                                             "out_of_bounds_water_to_air")} for r in rows]}
 
 
 def main(argv=None) -> int:
