@@ -249,21 +249,23 @@ def _programs(config: Config, devices: tuple, traced: bool = False):
     evaluate = _evaluate_program(config, devices) if traced else None
     if len(devices) == 1:
         return jax.jit(init), jax.jit(chunk, donate_argnums=0), evaluate or jax.jit(_evaluate_fn(config, devices))
-    # Seeds over devices: shard_map gives each device its block of seeds and runs the function above
-    # on it alone (no communication); every output keeps the seed axis, sharded the same way.
+    seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
+    hp = (seeds,) if traced else ()
+    return (_jit_over_seeds(init, devices, (seeds, whole, *hp)),
+            _jit_over_seeds(chunk, devices, (seeds, *hp), donate_argnums=0),
+            evaluate or _evaluate_program(config, devices))
+
+
+def _jit_over_seeds(f, devices: tuple, in_specs: tuple, **jit_kwargs):
+    """f jitted over several devices: shard_map gives each device its block of seeds and runs f on
+    it alone (no communication); every output keeps the seed axis, sharded the same way. The one
+    place multi-device programs are built, so the partitioner workaround applies to all of them."""
     sharding.use_gspmd_partitioner()
     mesh = sharding.SeedPlacement(devices).mesh
-    seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
-    split, replicated = NamedSharding(mesh, seeds), NamedSharding(mesh, whole)
-    hp_spec, hp_shard = ((seeds,), (split,)) if traced else ((), ())
-
-    def over_seeds(f, in_specs):
-        return jax.shard_map(f, mesh=mesh, in_specs=in_specs, out_specs=seeds, check_vma=False)
-    return (jax.jit(over_seeds(init, (seeds, whole, *hp_spec)), in_shardings=(split, replicated, *hp_shard),
-                    out_shardings=split),
-            jax.jit(over_seeds(chunk, (seeds, *hp_spec)), in_shardings=(split, *hp_shard), out_shardings=split,
-                    donate_argnums=0),
-            evaluate or _evaluate_program(config, devices))
+    seeds = PartitionSpec(sharding.SEED_AXIS)
+    return jax.jit(jax.shard_map(f, mesh=mesh, in_specs=in_specs, out_specs=seeds, check_vma=False),
+                   in_shardings=tuple(NamedSharding(mesh, spec) for spec in in_specs),
+                   out_shardings=NamedSharding(mesh, seeds), **jit_kwargs)
 
 
 def _evaluate_fn(config: Config, devices: tuple):
@@ -285,11 +287,8 @@ def _evaluate_jit(config: Config, devices: tuple):
     evaluate = _evaluate_fn(config, devices)
     if len(devices) == 1:
         return jax.jit(evaluate)
-    mesh = sharding.SeedPlacement(devices).mesh
     seeds = PartitionSpec(sharding.SEED_AXIS)
-    split = NamedSharding(mesh, seeds)
-    return jax.jit(jax.shard_map(evaluate, mesh=mesh, in_specs=(seeds, seeds), out_specs=seeds, check_vma=False),
-                   in_shardings=(split, split), out_shardings=split)
+    return _jit_over_seeds(evaluate, devices, (seeds, seeds))
 
 
 def hparams_abstract(config: Config):
@@ -502,8 +501,6 @@ def eval_rows(config: Config, seeds: list[int], steps: int, wall_s: float, pendi
         learn = p["learn_iters"]
         row = {"env_steps": steps, "wall_time_s": round(wall_s, 3), "seed": seed,
                "success_rate": float(ev["success_rate"][i]), "episode_return": float(ev["episode_return"][i]),
-               "success_air_to_water": float(ev.get("success_air_to_water", [math.nan] * len(seeds))[i]),
-               "success_water_to_air": float(ev.get("success_water_to_air", [math.nan] * len(seeds))[i]),
                "train_episode_return": p["return_sum"] / eps if eps else math.nan,
                "train_success_rate": p["success_sum"] / eps if eps else math.nan,
                "train_episodes": int(eps),
@@ -515,7 +512,7 @@ def eval_rows(config: Config, seeds: list[int], steps: int, wall_s: float, pendi
                "grad_updates": int(updates[i])}
         for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
             row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
-        for k in FAILURE_COLUMNS:
+        for k in ("success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):  # train.eval_paper_pairs
             row[k] = float(ev[k][i]) if k in ev else math.nan
         rows.append(row)
     return rows

@@ -26,26 +26,27 @@ def make_evaluate(config: Config, act, init_carry, memory: bool):
 
     def run(actor_params, states, m):
         """Runs m episodes in parallel until all have ended (at most the step limit); returns
-        per-episode (success, collision, out of bounds, return). Stopping when the last episode ends, instead of always running
-        the full step limit, makes an evaluation of a trained policy several times cheaper."""
+        per-episode (success, collision, out of bounds, return). Stopping when the last episode ends,
+        instead of always running the full step limit, makes an evaluation of a trained policy
+        several times cheaper."""
         def body(c):
-            i, st, carry, alive, ret, success, collision, out = c
+            i, st, carry, alive, ret, success, collision, oob = c
             carry = carry if memory else init_carry((m,))
             carry, action = act(actor_params, carry, st.obs)
             st = jax.vmap(env.step)(st, action)
             ret = ret + jnp.where(alive, st.reward, 0.0)
             success = success | (alive & st.info["arrived"])
             collision = collision | (alive & st.info["collision"])
-            out = out | (alive & st.info["out_of_bounds"] & ~st.info["collision"])  # as the evaluator counts
+            oob = oob | (alive & st.info["out_of_bounds"] & ~st.info["collision"])  # as the evaluator counts
             alive = alive & ~st.done
-            return i + 1, st, carry, alive, ret, success, collision, out
+            return i + 1, st, carry, alive, ret, success, collision, oob
 
         no = jnp.zeros(m, bool)
         init = (jnp.zeros((), jnp.int32), states, init_carry((m,)), jnp.ones(m, bool), jnp.zeros(m), no, no, no)
-        _, _, _, _, ret, success, collision, out = jax.lax.while_loop(lambda c: (c[0] < horizon) & jnp.any(c[3]),
+        _, _, _, _, ret, success, collision, oob = jax.lax.while_loop(lambda c: (c[0] < horizon) & jnp.any(c[3]),
                                                                       body, init)
         f32 = lambda x: x.astype(jnp.float32)  # noqa: E731
-        return f32(success), f32(collision), f32(out), ret
+        return f32(success), f32(collision), f32(oob), ret
 
     def evaluate(actor_params, key):
         k_rand, k_pairs = jax.random.split(key)
