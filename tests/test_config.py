@@ -31,6 +31,8 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         assert c.agent.actor_lr == c.agent.critic_lr == 2e-3 and c.replay.batch_size == 1024
         assert c.agent.n_step == 5 and c.agent.policy_average_tau == 0.001 and c.agent.critic_layer_norm
         assert c.agent.lr_end_scale == 0.1 and c.agent.tau == 0.02
+        # training starts near the risers (the paper's W-A start is 1.05 m from one): measured for the LSTM agents only
+        assert dict(c.env.overrides).get("goal_clearance", 1.0) == (0.6 if name.endswith("_lstm") else 1.0)
 
 
 def test_auto_sizes_resolve_per_backend_and_say_so():
