@@ -4,7 +4,9 @@
         state/    the whole runner state of every seed (agent, optimisers, replay buffer, envs, keys)
         policy/   the run's policy: the actor's Polyak average (agent.policy_average_tau; the trained
                   actor itself when that is 1), stacked over seeds (read by `load_policy`)
-        meta/     JSON: env_steps, chunk, wall_time_s, config name
+        best/     with train.track_best_policy: each seed's best evaluated policy so far, stacked
+                  over seeds (docrl_jax.best_policy; `load_policy(..., which="best")`)
+        meta/     JSON: env_steps, chunk, wall_time_s, config name, and the best policies' record
 
 Orbax cannot write zero-size arrays (MJX keeps a few), so a tree is stored as its non-empty leaves
 keyed by flat index and rebuilt from an abstract tree of the same structure on restore.
@@ -66,11 +68,14 @@ def manager(run_dir: str | Path, keep: int | None = None, create: bool = False) 
     return ocp.CheckpointManager(Path(run_dir).resolve() / CHECKPOINT_DIR, options=options)
 
 
-def save(mngr: ocp.CheckpointManager, env_steps: int, state: Any, policy_params: Any, meta: dict) -> None:
+def save(mngr: ocp.CheckpointManager, env_steps: int, state: Any, policy_params: Any, meta: dict,
+         best_params: Any = None) -> None:
     """Writes one checkpoint synchronously (a Ctrl-C right after must not leave it half written)."""
-    mngr.save(env_steps, args=ocp.args.Composite(state=ocp.args.StandardSave(_pack(state)),
-                                                 policy=ocp.args.StandardSave(_pack(policy_params)),
-                                                 meta=ocp.args.JsonSave(meta)), force=True)
+    items = dict(state=ocp.args.StandardSave(_pack(state)), policy=ocp.args.StandardSave(_pack(policy_params)),
+                 meta=ocp.args.JsonSave(meta))
+    if best_params is not None:
+        items["best"] = ocp.args.StandardSave(_pack(best_params))
+    mngr.save(env_steps, args=ocp.args.Composite(**items), force=True)
     mngr.wait_until_finished()
 
 
@@ -81,9 +86,16 @@ def latest_step(run_dir: str | Path) -> int | None:
     return manager(run_dir).latest_step()
 
 
+def has_best(mngr: ocp.CheckpointManager, step: int) -> bool:
+    """Whether checkpoint `step` holds best policies (runs before 2026-11-23 or without
+    train.track_best_policy do not)."""
+    return (Path(mngr.directory) / str(step) / "best").is_dir()
+
+
 def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, abstract_policy: Any = None,
-            sharding: jax.sharding.Sharding | None = None):
-    """Restores (state, policy_params, meta); pass None for an item you do not need. With
+            sharding: jax.sharding.Sharding | None = None, item: str = "policy"):
+    """Restores (state, policy_params, meta); pass None for an item you do not need; `item="best"`
+    reads the best policies (same tree as the policy) in place of the final one. With
     `sharding` (the seed axis over several devices, `SeedPlacement.seed_sharding`) every leaf is
     restored as a global array placed by it (collective over processes); without, as an
     uncommitted array on this process's first device."""
@@ -91,8 +103,8 @@ def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, 
     if abstract_state is not None:
         items["state"] = ocp.args.StandardRestore(_abstract_packed(abstract_state, sharding))
     if abstract_policy is not None:
-        items["policy"] = ocp.args.StandardRestore(_abstract_packed(abstract_policy, sharding))
+        items[item] = ocp.args.StandardRestore(_abstract_packed(abstract_policy, sharding))
     out = mngr.restore(step, args=ocp.args.Composite(**items))
     state = _unpack(abstract_state, out["state"], sharding) if abstract_state is not None else None
-    policy = _unpack(abstract_policy, out["policy"], sharding) if abstract_policy is not None else None
+    policy = _unpack(abstract_policy, out[item], sharding) if abstract_policy is not None else None
     return state, policy, out["meta"]

@@ -39,7 +39,7 @@ from rich.syntax import Syntax
 
 from jax.sharding import NamedSharding, PartitionSpec
 
-from docrl_jax import checkpoint, sharding
+from docrl_jax import best_policy, checkpoint, sharding
 from docrl_jax.config import Config, ConfigError, load_config, to_yaml
 from docrl_jax.policy import RunDirError
 from docrl_jax.run_dir import CONFIG_FILE, FAILURE_COLUMNS, METRIC_COLUMNS, METRICS_FILE, TB_DIR, read_config
@@ -372,11 +372,16 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         try:
             # Shapes from the jitted program: a compiled one cannot be traced again.
             abstract = jax.eval_shape(programs(config)[0], keys, total)
-            state, _, meta = checkpoint.restore(mngr, step, abstract_state=abstract, sharding=placement.seed_sharding)
+            with_best = t_cfg.track_best_policy and checkpoint.has_best(mngr, step)
+            state, best_params, meta = checkpoint.restore(
+                mngr, step, abstract_state=abstract, sharding=placement.seed_sharding,
+                abstract_policy=abstract.agent.actor_average if with_best else None, item="best")
         except Exception as e:
             console.print(f"[bold red]error:[/] cannot restore checkpoint {step} of {run_dir}: {type(e).__name__}: {e}")
             return EXIT_CONFIG
         done_chunks, wall_before, pending = meta["chunk"], meta["wall_time_s"], meta["pending"]
+        # A checkpoint from before best-policy tracking starts it afresh at the next evaluation.
+        best = best_policy.from_meta(placement.get(best_params), meta["best"]) if with_best else None
         if done_chunks * trainer.steps_per_chunk != meta["env_steps"]:
             console.print(f"[bold red]error:[/] checkpoint {step} was written with another chunk size; "
                           f"train.log_every and env.num_envs cannot change on resume")
@@ -389,7 +394,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         console.print(f"resumed from env step {step} (chunk {done_chunks}/{trainer.num_chunks})")
     else:
         state = init(keys, total)
-        done_chunks, wall_before, pending = 0, 0.0, _empty_pending(len(seeds))
+        done_chunks, wall_before, pending, best = 0, 0.0, _empty_pending(len(seeds)), None
         if primary:
             with open(metrics_path, "w", newline="") as fh:
                 csv.writer(fh).writerow(METRIC_COLUMNS)
@@ -401,14 +406,20 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
 
     def save(steps: int):
         policy = state.agent.actor_average  # the run's policy (= the trained actor unless averaged)
-        checkpoint.save(mngr, steps, state, policy,
-                        {"env_steps": steps, "chunk": done_chunks, "wall_time_s": wall(), "pending": pending,
-                         "name": config.name})
+        meta = {"env_steps": steps, "chunk": done_chunks, "wall_time_s": wall(), "pending": pending,
+                "name": config.name}
+        best_params = None
+        if best is not None:  # each seed's best evaluated policy so far (docrl_jax.best_policy)
+            meta["best"] = best_policy.to_meta(best)
+            best_params = jax.tree.map(placement.put_seeds, best.params)
+        checkpoint.save(mngr, steps, state, policy, meta, best_params)
 
     def do_eval(steps: int):
-        nonlocal pending
+        nonlocal pending, best
         keys = placement.put_seeds(np.asarray(eval_keys(seeds, steps)))
         ev = placement.get(evaluate(state.agent.actor_average, keys))
+        if t_cfg.track_best_policy:
+            best, _ = best_policy.update(best, placement.get(state.agent.actor_average), ev, steps)
         trained = {}
         if t_cfg.eval_trained_actor and config.agent.policy_average_tau < 1.0:
             trained = placement.get(evaluate(state.agent.actor, keys))  # same episodes, the trained actor

@@ -145,6 +145,11 @@ class TrainConfig:
     eval_trained_actor: bool = _f(False, "With agent.policy_average_tau < 1: also evaluate the trained (not "
                                          "averaged) actor on the same episodes, columns trained_actor_* "
                                          "(an ablation; doubles the evaluation time).")
+    track_best_policy: bool = _f(True, "Keep each seed's best evaluated policy so far (by the paper pairs' weaker "
+                                       "direction with eval_paper_pairs, else random-goal success; ties to the "
+                                       "later) in every checkpoint's best/ item, beside the final policy; "
+                                       "load_policy(which='best') and evaluate --which best read it "
+                                       "(docrl_jax/best_policy.py). Tables report the final policy.")
     checkpoint_every: int = _f(200_000, "Env steps between Orbax checkpoints (plus one at the end and on Ctrl-C).")
     keep_checkpoints: int = _f(3, "Most recent checkpoints kept on disk.")
 

@@ -351,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed-index", default="0",
                    help="seed(s) of --run to evaluate, comma-separated, e.g. 0,1,2 (default 0); several seeds "
                         "also give a table of mean and spread over seeds")
+    p.add_argument("--which", default="final", choices=("final", "best"),
+                   help="with --run: the final policy of the latest checkpoint (default; what tables report) "
+                        "or each seed's best evaluated policy kept beside it (train.track_best_policy)")
     p.add_argument("--label", help="method name in the tables (default: 'BBA' or the run dir's name)")
     p.add_argument("--trials", type=int, default=100, help="trials per scenario and direction (default 100)")
     p.add_argument("--scenarios", default="1,2,3", help="comma-separated scenarios (default 1,2,3)")
@@ -467,8 +470,9 @@ def load_policy_for(args, env_params, seed_index: int) -> tuple[Any, str]:
     except ImportError as e:
         raise RunDirError(f"--run needs the trainer module docrl_jax.train, which cannot be imported here ({e}); "
                           f"built-in policies work without it: --policy {', '.join(POLICIES)}") from None
-    policy = load_policy(args.run, seed_index=seed_index)
-    return policy, args.label or Path(args.run).resolve().name
+    policy = load_policy(args.run, seed_index=seed_index, which=args.which)
+    print(f"{Path(args.run).name}: {policy.source}", flush=True)
+    return policy, args.label or Path(args.run).resolve().name + (" (best)" if args.which == "best" else "")
 
 
 def aggregate_seeds(rows: list[dict]) -> list[dict]:
@@ -542,7 +546,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     seed_indices = cfg["seed_indices"] if args.run is not None else [None]
     rows, trial_rows = [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
-            "run": args.run, "policy": args.policy, "seed_indices": seed_indices, "trials": args.trials,
+            "run": args.run, "which": args.which if args.run else None, "policy": args.policy,
+            "seed_indices": seed_indices, "policy_sources": {}, "trials": args.trials,
             "max_steps": args.max_steps, "seed": args.seed, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
             "trial_spec": asdict(TrialSpec()), "nominal_yaw": NOMINAL_YAW,
             "bba_depth_phase": args.bba_depth_phase if args.policy else None,
@@ -581,8 +586,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     # The seeds of one run share their networks: keep the first seed's functions so
                     # the compiled rollout (cached per act function) serves every seed.
                     first = next(iter(policies.values()))[0]
-                    policy = replace(first, params=policy.params)
+                    policy = replace(first, params=policy.params, source=policy.source)
                 policies[seed_index] = (policy, method)
+                if policy.source:
+                    meta["policy_sources"][str(seed_index)] = policy.source
             policy, method = policies[seed_index]
             for row, trials in evaluate_policy(policy, method, [scenario], cfg["directions"], args.trials,
                                                args.max_steps, args.seed, cfg["env"], seed_index, report):

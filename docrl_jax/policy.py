@@ -28,3 +28,4 @@ class Policy:
     params: Any
     init_carry: Callable[[], Any]
     act: Callable[[Any, Any, Any, dict, Any], tuple[Any, Any]]
+    source: str = ""   # where the params came from (load_policy: final or best, which checkpoint)

@@ -5,8 +5,9 @@
     <run_dir>/tb/              TensorBoard event files (tensorboardX), training metrics every chunk
     <run_dir>/checkpoints/<env_steps>/{state,policy,meta}   Orbax (see `docrl_jax.checkpoint`)
 
-`load_policy(run_dir, seed_index)` returns the evaluation contract's `Policy` (docrl_jax.policy)
-for a finished or interrupted run.
+`load_policy(run_dir, seed_index, which)` returns the evaluation contract's `Policy` (docrl_jax.policy)
+for a finished or interrupted run: the final policy of the latest checkpoint, or with which="best"
+that checkpoint's best policy of the seed (docrl_jax.best_policy). `Policy.source` says which.
 """
 
 from __future__ import annotations
@@ -56,12 +57,19 @@ def policy_abstract(agent, config: Config):
     return jax.eval_shape(jax.vmap(agent.init), keys).actor
 
 
-def load_policy(run_dir: str | Path, seed_index: int = 0) -> Policy:
-    """The deterministic policy of seed `seed_index` from the latest checkpoint of `run_dir`.
-    Raises RunDirError for a missing directory, config or checkpoint, a corrupt checkpoint, an
-    incompatible config or a seed index out of range."""
+WHICH = ("final", "best")
+
+
+def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") -> Policy:
+    """The deterministic policy of seed `seed_index` from the latest checkpoint of `run_dir`: the run's
+    policy at that checkpoint (`which="final"`, what tables report) or the best evaluated one so far
+    (`which="best"`). Raises RunDirError for a missing directory, config or checkpoint, a corrupt
+    checkpoint, an incompatible config, a seed index out of range, or a run without best policies."""
+    from docrl_jax import best_policy
     from docrl_jax.algorithms import make_agent
 
+    if which not in WHICH:
+        raise RunDirError(f"which={which!r}: valid choices are {', '.join(WHICH)}")
     config = read_config(run_dir)
     if not 0 <= seed_index < config.train.num_seeds:
         raise RunDirError(f"seed_index={seed_index}: the run has num_seeds={config.train.num_seeds} "
@@ -70,13 +78,20 @@ def load_policy(run_dir: str | Path, seed_index: int = 0) -> Policy:
     if step is None:
         raise RunDirError(f"{str(run_dir)!r} has no checkpoint under {checkpoint.CHECKPOINT_DIR}/")
     agent = make_agent(config)
+    mngr = checkpoint.manager(run_dir)
+    if which == "best" and not checkpoint.has_best(mngr, step):
+        raise RunDirError(f"checkpoint {step} in {str(run_dir)!r} holds no best policy (trained with "
+                          f"train.track_best_policy false, or before best-policy tracking existed); "
+                          f"which='final' loads its final policy")
     try:
-        _, stacked, _ = checkpoint.restore(checkpoint.manager(run_dir), step,
-                                           abstract_policy=policy_abstract(agent, config))
+        _, stacked, meta = checkpoint.restore(mngr, step, abstract_policy=policy_abstract(agent, config),
+                                              item="best" if which == "best" else "policy")
     except Exception as e:  # orbax raises many types for unreadable data; all mean the same here
         raise RunDirError(f"checkpoint {step} in {str(run_dir)!r} is corrupt or does not match config.yaml: "
                           f"{type(e).__name__}: {e}") from None
     params = jax.tree.map(lambda x: x[seed_index], stacked)
+    source = (best_policy.describe(meta["best"], seed_index) + f", kept in checkpoint {step}" if which == "best"
+              else f"final policy of seed index {seed_index}: checkpoint {step}")
     memory = config.agent.actor == "lstm" and config.agent.memory
 
     def init_carry():
@@ -88,4 +103,4 @@ def load_policy(run_dir: str | Path, seed_index: int = 0) -> Policy:
             carry = init_carry()
         return agent.act(params, carry, obs)
 
-    return Policy(name=config.name, params=params, init_carry=init_carry, act=act)
+    return Policy(name=config.name, params=params, init_carry=init_carry, act=act, source=source)

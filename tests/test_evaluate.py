@@ -5,6 +5,7 @@ One env and one compiled rollout per module (the scripted oracle and the diver s
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 
 import jax
@@ -278,11 +279,11 @@ def fake_trainer(monkeypatch, tmp_path):
     mod = types.ModuleType("docrl_jax.train")
     oracle = straight_line()
 
-    def load_policy(run_dir, seed_index=0):
+    def load_policy(run_dir, seed_index=0, which="final"):
         evaluate.check_run_dir(run_dir)
         if seed_index > 1:
             raise RunDirError(f"run directory {run_dir!r} has seeds 0, 1; no seed index {seed_index}")
-        return oracle
+        return dataclasses.replace(oracle, source=f"{which} policy of seed index {seed_index}")
     mod.load_policy = load_policy
     monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
     run = tmp_path / "oracle_run"
@@ -293,15 +294,18 @@ def fake_trainer(monkeypatch, tmp_path):
 
 def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
     out = tmp_path / "out"
-    assert evaluate.main(["--run", str(fake_trainer), "--seed-index", "0,1", "--trials", str(N), "--scenarios", "1",
+    assert evaluate.main(["--run", str(fake_trainer), "--which", "best", "--seed-index", "0,1", "--trials", str(N),
+                          "--scenarios", "1",
                           "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "2",
                           "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]",  # the module's env and N: no new compile
                           "--out", str(out)]) == 0
     md = (out / "results.md").read_text()
-    assert "## Over seeds" in md and "| A-W oracle_run | " in md and f"{N:.1f} ± 0.0/{N} [{N}, {N}]" in md
+    assert "## Over seeds" in md and "| A-W oracle_run (best) | " in md and f"{N:.1f} ± 0.0/{N} [{N}, {N}]" in md
     js = json.loads((out / "results.json").read_text())
     assert [r["seed_index"] for r in js["results"]] == [0, 1] and js["over_seeds"][0]["successes_mean"] == N
-    assert len(js["trials"]) == 2 * N and js["meta"]["seed_indices"] == [0, 1]
+    assert len(js["trials"]) == 2 * N and js["meta"]["seed_indices"] == [0, 1] and js["meta"]["which"] == "best"
+    assert js["meta"]["policy_sources"] == {"0": "best policy of seed index 0", "1": "best policy of seed index 1"}
+    assert "oracle_run: best policy of seed index 1" in capsys.readouterr().out
     assert (out / "trajectory_s1_air_to_water_seed0.png").exists()
     assert (out / "trajectories_s1_air_to_water_seed1.npz").exists()
 
@@ -394,7 +398,7 @@ def test_cli_run_seeds_share_one_compile(monkeypatch, tmp_path):
     base = straight_line()
     mod = types.ModuleType("docrl_jax.train")
 
-    def load_policy(run_dir, seed_index=0):  # fresh closures on every call, as the real loader makes
+    def load_policy(run_dir, seed_index=0, which="final"):  # fresh closures on every call, as the real loader makes
         return Policy(name="p", params={"dive": jnp.asarray(seed_index == 1)},
                       init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a))
     mod.load_policy = load_policy

@@ -1,0 +1,75 @@
+"""The best policy of each seed so far, tracked beside the run's final policy (`train.track_best_policy`).
+
+After every periodic evaluation, each seed's evaluated policy (the Polyak average, as the final
+policy) is compared with that seed's best so far by a score, compared lexicographically:
+  1. with `train.eval_paper_pairs`: the lower of the air-to-water and water-to-air success (the
+     target is both directions); without: the random-goal success;
+  2. then the random-goal success.
+A policy at least as good as the best replaces it, so ties go to the later, longer-trained policy.
+The best is kept on the host (a few kilobytes per seed) and written into every checkpoint as its
+`best` item, beside `policy` (the final/current one), with this bookkeeping in the checkpoint's meta;
+a resume restores both, so an interrupted run picks the same best as an uninterrupted one.
+
+The best is chosen on the very evaluation episodes it is scored on, so its training-time score is
+optimistic: re-evaluate it (`python -m docrl_jax.evaluate --run RUN --which best`, other trial seeds)
+before quoting it. Tables report the final policy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import numpy as np
+
+PAIR_KEYS = ("success_air_to_water", "success_water_to_air")
+
+
+@dataclass(frozen=True)
+class BestPolicy:
+    params: Any               # host (numpy) actor params stacked over seeds; each seed's slice is its best
+    score: np.ndarray         # (num_seeds, 2): the lexicographic score of each seed's best
+    env_steps: np.ndarray     # (num_seeds,): the evaluation each best comes from
+    evaluation: list[dict]    # per seed: the evaluation's success fractions, for the record
+
+
+def score(ev: dict) -> np.ndarray:
+    """(num_seeds, 2) scores of one evaluation (`ev`: per-seed arrays, as the evaluate program returns)."""
+    rate = np.asarray(ev["success_rate"], np.float64)
+    first = np.minimum(*(np.asarray(ev[k], np.float64) for k in PAIR_KEYS)) if PAIR_KEYS[0] in ev else rate
+    return np.stack([first, rate], axis=-1)
+
+
+def update(best: BestPolicy | None, params: Any, ev: dict, env_steps: int) -> tuple[BestPolicy, np.ndarray]:
+    """The best after an evaluation of `params` (host arrays stacked over seeds) at `env_steps`, and
+    which seeds it replaced. The first evaluation always sets the best."""
+    new = score(ev)
+    summary = [{k: float(np.asarray(ev[k])[i]) for k in ("success_rate", *PAIR_KEYS) if k in ev}
+               for i in range(len(new))]
+    if best is None:
+        return BestPolicy(params, new, np.full(len(new), env_steps, np.int64), summary), np.ones(len(new), bool)
+    old = best.score
+    better = (new[:, 0] > old[:, 0]) | ((new[:, 0] == old[:, 0]) & (new[:, 1] >= old[:, 1]))
+    pick = lambda n, o: np.where(better.reshape((-1,) + (1,) * (np.ndim(n) - 1)), n, o)  # noqa: E731
+    return BestPolicy(jax.tree.map(pick, params, best.params), np.where(better[:, None], new, old),
+                      np.where(better, env_steps, best.env_steps),
+                      [s if b else o for s, b, o in zip(summary, better, best.evaluation)]), better
+
+
+def to_meta(best: BestPolicy) -> dict:
+    """JSON for the checkpoint's meta (the params go into its `best` item)."""
+    return {"score": best.score.tolist(), "env_steps": best.env_steps.tolist(), "evaluation": best.evaluation}
+
+
+def from_meta(params: Any, meta: dict) -> BestPolicy:
+    return BestPolicy(params, np.asarray(meta["score"], np.float64), np.asarray(meta["env_steps"], np.int64),
+                      list(meta["evaluation"]))
+
+
+def describe(meta: dict, seed_index: int) -> str:
+    """One line saying which evaluation a seed's best comes from."""
+    ev = meta["evaluation"][seed_index]
+    names = {"success_air_to_water": "A-W", "success_water_to_air": "W-A", "success_rate": "random goals"}
+    parts = [f"{names[k]} {v:.2f}" for k, v in ev.items()]
+    return f"best policy of seed index {seed_index}: the evaluation at env step {meta['env_steps'][seed_index]:,} ({', '.join(parts)})"
