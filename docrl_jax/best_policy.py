@@ -72,4 +72,5 @@ def describe(meta: dict, seed_index: int) -> str:
     ev = meta["evaluation"][seed_index]
     names = {"success_air_to_water": "A-W", "success_water_to_air": "W-A", "success_rate": "random goals"}
     parts = [f"{names[k]} {v:.2f}" for k, v in ev.items()]
-    return f"best policy of seed index {seed_index}: the evaluation at env step {meta['env_steps'][seed_index]:,} ({', '.join(parts)})"
+    step = meta["env_steps"][seed_index]
+    return f"best policy of seed index {seed_index}: the evaluation at env step {step:,} ({', '.join(parts)})"
