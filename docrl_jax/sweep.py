@@ -64,6 +64,7 @@ NOT_SWEEPABLE = {
     "train.devices": "where the rows run, not what they learn (set it with --set)",
     "train.checkpoint_every": "sweeps write no checkpoints",
     "train.keep_checkpoints": "sweeps write no checkpoints",
+    "train.track_best_policy": "sweeps write no checkpoints (the best policy lives in them)",
     "train.eval_trained_actor": "set it for the whole sweep with --set",
 }
 SUCCESS_LEVEL = 0.9
