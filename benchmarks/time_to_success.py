@@ -158,13 +158,14 @@ def main(argv=None) -> int:
     lines = [f"# Time to {args.target:.0%} in both directions: {tag} ({meta['gpu']}, {meta['date']})", "",
              f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}  ",
              f"Compilation cache: {args.compile_cache}", "",
-             "| seed | time to target (s) | env steps | first eval (s) | best A-W / W-A | final A-W / W-A | stop |",
-             "|---|---|---|---|---|---|---|"]
+             "| seed | time to target (s) | env steps | first eval (s) | best A-W / W-A | final A-W / W-A | "
+             "launch to stop (s) | stop |", "|---|---|---|---|---|---|---|---|"]
     for r in results:
         lines.append(f"| {r['seed']} | {r['time_to_target_s'] if r['reached'] else '–'} | "
                      f"{r['env_steps_at_target'] or '–'} | {r['first_eval_s']} | "
                      f"{r['best_success']['air_to_water']:.2f} / {r['best_success']['water_to_air']:.2f} | "
-                     f"{r['final']['air_to_water']} / {r['final']['water_to_air']} | {r['stop_reason']} |")
+                     f"{r['final']['air_to_water']} / {r['final']['water_to_air']} | {r['elapsed_s']} | "
+                     f"{r['stop_reason']} |")
     lines += ["", f"Median time to target: {summary['median_time_to_target_s']} s; reached {summary['reached']}/"
                   f"{summary['seeds']}; final policy at target {summary['final_both_at_target']}/{summary['seeds']}"]
     with open(os.path.join(args.out, f"time_to_success_{tag}.md"), "w") as f:
