@@ -42,7 +42,8 @@ from jax.sharding import NamedSharding, PartitionSpec
 from docrl_jax import best_policy, checkpoint, sharding
 from docrl_jax.config import Config, ConfigError, load_config, to_yaml
 from docrl_jax.policy import RunDirError
-from docrl_jax.run_dir import CONFIG_FILE, FAILURE_COLUMNS, METRIC_COLUMNS, METRICS_FILE, TB_DIR, read_config
+from docrl_jax.run_dir import (CONFIG_FILE, FAILURE_COLUMNS, METRIC_COLUMNS, METRICS_FILE, TB_DIR, accumulate,
+                                append_rows, empty_pending, eval_rows, read_config, truncate_metrics)
 from docrl_jax.train import make_trainer
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -390,11 +391,11 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         state = state.replace(total_steps=placement.put_seeds(
             np.full(state.total_steps.shape, trainer.total_env_steps, np.int32)))
         if primary:
-            _truncate_csv(metrics_path, step)
+            truncate_metrics(metrics_path, step)
         console.print(f"resumed from env step {step} (chunk {done_chunks}/{trainer.num_chunks})")
     else:
         state = init(keys, total)
-        done_chunks, wall_before, pending, best = 0, 0.0, _empty_pending(len(seeds)), None
+        done_chunks, wall_before, pending, best = 0, 0.0, empty_pending(len(seeds)), None
         if primary:
             with open(metrics_path, "w", newline="") as fh:
                 csv.writer(fh).writerow(METRIC_COLUMNS)
@@ -429,7 +430,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):
             if k in ev:
                 writer.add_scalar(f"eval/{k}", float(np.mean(ev[k])), steps)
-        pending = _empty_pending(len(seeds))
+        pending = empty_pending(len(seeds))
         return rows
 
     last_eval = {}
@@ -468,7 +469,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
                 if primary:
                     (run_dir / STARTUP_FILE).write_text(json.dumps(startup, indent=1))
             prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
-            _accumulate(pending, m)
+            accumulate(pending, m)
             sps = trainer.steps_per_chunk * len(seeds) / dt  # env steps/s of all seeds in this chunk
             _log_chunk(writer, m, env_steps, sps)
             final = done_chunks == trainer.num_chunks
@@ -500,43 +501,6 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
     return status
 
 
-def eval_rows(config: Config, seeds: list[int], steps: int, wall_s: float, pending: dict, ev: dict,
-              trained: dict, updates) -> list[dict]:
-    """metrics.csv rows (METRIC_COLUMNS) of one evaluation, one per seed row: the evaluation `ev`
-    (and `trained`, the trained actor's, or {}), the training statistics accumulated in `pending`
-    since the last evaluation, and the gradient updates done."""
-    rows = []
-    for i, seed in enumerate(seeds):
-        p = {k: v[i] for k, v in pending.items()}
-        eps = p["episodes"]
-        learn = p["learn_iters"]
-        row = {"env_steps": steps, "wall_time_s": round(wall_s, 3), "seed": seed,
-               "success_rate": float(ev["success_rate"][i]), "episode_return": float(ev["episode_return"][i]),
-               "train_episode_return": p["return_sum"] / eps if eps else math.nan,
-               "train_success_rate": p["success_sum"] / eps if eps else math.nan,
-               "train_episodes": int(eps),
-               "critic_loss": p["critic_loss"] / learn if learn else math.nan,
-               "actor_loss": p["actor_loss"] / learn if learn else math.nan,
-               "alpha": p["alpha"] / learn if learn and config.agent.algo == "sac" else math.nan,
-               "q": p["q"] / learn if learn else math.nan,
-               "policy_freq": p["policy_freq"] / learn if learn else math.nan,
-               "grad_updates": int(updates[i])}
-        for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
-            row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
-        for k in ("success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):  # train.eval_paper_pairs
-            row[k] = float(ev[k][i]) if k in ev else math.nan
-        rows.append(row)
-    return rows
-
-
-def append_rows(path: Path, rows: list[dict], columns: list[str] = METRIC_COLUMNS) -> None:
-    """Appends rows to a metrics CSV (floats to 6 significant digits)."""
-    with open(path, "a", newline="") as fh:
-        w = csv.DictWriter(fh, columns)
-        for row in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
-
-
 class _NoWriter:
     """TensorBoard writer of the processes other than 0."""
 
@@ -550,26 +514,6 @@ class _NoWriter:
 def _seed_mean(rows: list[dict]) -> dict:
     """Mean over seeds of an evaluation's rows (for the progress line)."""
     return {"success_rate": float(np.mean([r["success_rate"] for r in rows]))}
-
-
-def _empty_pending(num_seeds: int) -> dict:
-    keys = ("episodes", "return_sum", "success_sum", "learn_iters", "critic_loss", "actor_loss", "alpha", "q",
-            "policy_freq")
-    return {k: [0.0] * num_seeds for k in keys}
-
-
-def _accumulate(pending: dict, m: dict) -> None:
-    """Adds a chunk's per-seed metrics to the totals since the last evaluation (losses weighted by
-    the chunk's learning iterations). Kept as plain floats so it fits the checkpoint's JSON."""
-    learn = np.asarray(m["learn_iters"], np.float64)
-    for k in pending:
-        if k in ("episodes", "return_sum", "success_sum", "learn_iters"):
-            add = np.asarray(m[k], np.float64)
-        elif k in m:
-            add = np.asarray(m[k], np.float64) * learn
-        else:
-            add = np.zeros_like(learn)
-        pending[k] = [float(a + b) for a, b in zip(pending[k], add)]
 
 
 def _log_chunk(writer, m: dict, env_steps: int, sps: float) -> None:
@@ -602,24 +546,3 @@ def _duration(seconds: float) -> str:
     if s >= 3600:
         return f"{s // 3600} h {s % 3600 // 60:02d} min"
     return f"{s // 60} min {s % 60:02d} s" if s >= 60 else f"{s} s"
-
-
-def _truncate_csv(path: Path, env_steps: int) -> None:
-    """Drops rows written after the checkpoint being resumed (they will be written again). A file
-    written by an older version with fewer columns gets today's header, its rows re-aligned by
-    column name (the new columns left empty), so the rows appended after the resume line up."""
-    if not path.is_file():
-        with open(path, "w", newline="") as fh:
-            csv.writer(fh).writerow(METRIC_COLUMNS)
-        return
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
-    header, body = rows[0], rows[1:]
-    keep = [r for r in body if r and int(float(r[0])) <= env_steps]
-    if header != METRIC_COLUMNS and set(header) <= set(METRIC_COLUMNS):
-        keep = [[dict(zip(header, r)).get(c, "") for c in METRIC_COLUMNS] for r in keep]
-        header = METRIC_COLUMNS
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        w.writerows(keep)

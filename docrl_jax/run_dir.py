@@ -3,7 +3,10 @@
     <run_dir>/config.yaml      the resolved config (every key, overrides applied)
     <run_dir>/metrics.csv      one row per seed per evaluation (see `METRIC_COLUMNS`)
     <run_dir>/tb/              TensorBoard event files (tensorboardX), training metrics every chunk
-    <run_dir>/checkpoints/<env_steps>/{state,policy,meta}   Orbax (see `docrl_jax.checkpoint`)
+    <run_dir>/checkpoints/<env_steps>/{state,policy,best,meta}   Orbax (see `docrl_jax.checkpoint`)
+
+The metrics.csv rows are made here too (`eval_rows`, `accumulate`, `append_rows`, `truncate_metrics`),
+shared by the trainer (docrl_jax.cli) and sweeps (docrl_jax.sweep).
 
 `load_policy(run_dir, seed_index, which)` returns the evaluation contract's `Policy` (docrl_jax.policy)
 for a finished or interrupted run: the final policy of the latest checkpoint, or with which="best"
@@ -12,10 +15,13 @@ that checkpoint's best policy of the seed (docrl_jax.best_policy). `Policy.sourc
 
 from __future__ import annotations
 
+import csv
+import math
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from docrl_jax import checkpoint
 from docrl_jax.config import Config, ConfigError, load_config
@@ -104,3 +110,82 @@ def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") 
         return agent.act(params, carry, obs)
 
     return Policy(name=config.name, params=params, init_carry=init_carry, act=act, source=source)
+
+
+# ------------------------------------------------------------------ metrics.csv rows
+def eval_rows(config: Config, seeds: list[int], steps: int, wall_s: float, pending: dict, ev: dict,
+              trained: dict, updates) -> list[dict]:
+    """metrics.csv rows (METRIC_COLUMNS) of one evaluation, one per seed row: the evaluation `ev`
+    (and `trained`, the trained actor's, or {}), the training statistics accumulated in `pending`
+    since the last evaluation, and the gradient updates done."""
+    rows = []
+    for i, seed in enumerate(seeds):
+        p = {k: v[i] for k, v in pending.items()}
+        eps = p["episodes"]
+        learn = p["learn_iters"]
+        row = {"env_steps": steps, "wall_time_s": round(wall_s, 3), "seed": seed,
+               "success_rate": float(ev["success_rate"][i]), "episode_return": float(ev["episode_return"][i]),
+               "train_episode_return": p["return_sum"] / eps if eps else math.nan,
+               "train_success_rate": p["success_sum"] / eps if eps else math.nan,
+               "train_episodes": int(eps),
+               "critic_loss": p["critic_loss"] / learn if learn else math.nan,
+               "actor_loss": p["actor_loss"] / learn if learn else math.nan,
+               "alpha": p["alpha"] / learn if learn and config.agent.algo == "sac" else math.nan,
+               "q": p["q"] / learn if learn else math.nan,
+               "policy_freq": p["policy_freq"] / learn if learn else math.nan,
+               "grad_updates": int(updates[i])}
+        for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
+            row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
+        for k in ("success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):  # train.eval_paper_pairs
+            row[k] = float(ev[k][i]) if k in ev else math.nan
+        rows.append(row)
+    return rows
+
+
+def append_rows(path: Path, rows: list[dict], columns: list[str] = METRIC_COLUMNS) -> None:
+    """Appends rows to a metrics CSV (floats to 6 significant digits)."""
+    with open(path, "a", newline="") as fh:
+        w = csv.DictWriter(fh, columns)
+        for row in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+
+
+def empty_pending(num_seeds: int) -> dict:
+    keys = ("episodes", "return_sum", "success_sum", "learn_iters", "critic_loss", "actor_loss", "alpha", "q",
+            "policy_freq")
+    return {k: [0.0] * num_seeds for k in keys}
+
+
+def accumulate(pending: dict, m: dict) -> None:
+    """Adds a chunk's per-seed metrics to the totals since the last evaluation (losses weighted by
+    the chunk's learning iterations). Kept as plain floats so it fits the checkpoint's JSON."""
+    learn = np.asarray(m["learn_iters"], np.float64)
+    for k in pending:
+        if k in ("episodes", "return_sum", "success_sum", "learn_iters"):
+            add = np.asarray(m[k], np.float64)
+        elif k in m:
+            add = np.asarray(m[k], np.float64) * learn
+        else:
+            add = np.zeros_like(learn)
+        pending[k] = [float(a + b) for a, b in zip(pending[k], add)]
+
+
+def truncate_metrics(path: Path, env_steps: int) -> None:
+    """Drops rows written after the checkpoint being resumed (they will be written again). A file
+    written by an older version with fewer columns gets today's header, its rows re-aligned by
+    column name (the new columns left empty), so the rows appended after the resume line up."""
+    if not path.is_file():
+        with open(path, "w", newline="") as fh:
+            csv.writer(fh).writerow(METRIC_COLUMNS)
+        return
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, body = rows[0], rows[1:]
+    keep = [r for r in body if r and int(float(r[0])) <= env_steps]
+    if header != METRIC_COLUMNS and set(header) <= set(METRIC_COLUMNS):
+        keep = [[dict(zip(header, r)).get(c, "") for c in METRIC_COLUMNS] for r in keep]
+        header = METRIC_COLUMNS
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(keep)

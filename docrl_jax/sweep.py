@@ -53,7 +53,7 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, hparams_neutral
 from docrl_jax.config import Config, ConfigError, check_replay_memory, field_docs, load_config, parse_overrides, \
     to_yaml, validate
 from docrl_jax.policy import RunDirError
-from docrl_jax.run_dir import CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE
+from docrl_jax.run_dir import CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, accumulate, append_rows, empty_pending, eval_rows
 
 SWEEP_FILE, TABLE_CSV, TABLE_MD = "sweep.json", "sweep.csv", "sweep.md"
 TRACED_KEYS = tuple(f"agent.{k}" for k in HPARAM_KEYS)
@@ -250,7 +250,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console) -> dict[str, li
     console.print(f"compiled in {compile_s:.1f} s")
     total = placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32))
     state = init(keys, total, hp)
-    pending = cli._empty_pending(len(rows))
+    pending = empty_pending(len(rows))
     trained_actor = [c.config.train.eval_trained_actor and c.config.agent.policy_average_tau < 1.0 for c, _ in rows]
     bad: dict[str, list] = {}
 
@@ -259,7 +259,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console) -> dict[str, li
         ekeys = placement.put_seeds(np.asarray(cli.eval_keys(seeds, steps)))
         ev = placement.get(evaluate(state.agent.actor_average, ekeys))
         trained = placement.get(evaluate(state.agent.actor, ekeys)) if any(trained_actor) else {}
-        out = cli.eval_rows(cfg, seeds, steps, time.time() - start, pending, ev, trained,
+        out = eval_rows(cfg, seeds, steps, time.time() - start, pending, ev, trained,
                             placement.get(state.agent.updates))
         for row, (c, _), wants in zip(out, rows, trained_actor):
             if not wants:
@@ -268,9 +268,9 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console) -> dict[str, li
             row.update({"combination": c.name, **{k: json.dumps(v) if isinstance(v, list) else v
                                                   for k, v in c.values.items()}})
         for c in group.combinations:
-            cli.append_rows(run_dir / c.name / METRICS_FILE, [r for r in out if r["combination"] == c.name],
+            append_rows(run_dir / c.name / METRICS_FILE, [r for r in out if r["combination"] == c.name],
                             _columns(grid))
-        pending = cli._empty_pending(len(rows))
+        pending = empty_pending(len(rows))
         mean = {c.name: np.mean([r["success_rate"] for r in out if r["combination"] == c.name])
                 for c in group.combinations}
         console.print(f"{steps:,} env steps, {time.time() - start:.0f} s: eval success "
@@ -286,7 +286,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console) -> dict[str, li
                 bad[c.name].append(s)
                 console.print(f"[bold red]non-finite loss[/] in {c.name} ({c.values}), seed {s}; its rows go on "
                               f"(independent of the others) and the table marks it as diverged")
-        cli._accumulate(pending, m)
+        accumulate(pending, m)
         steps, prev = done * trainer.steps_per_chunk, (done - 1) * trainer.steps_per_chunk
         if done == trainer.num_chunks or steps // t.eval_every > prev // t.eval_every:
             do_eval(steps)

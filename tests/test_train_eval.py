@@ -48,8 +48,7 @@ def test_resume_gives_an_older_metrics_csv_the_failure_columns(tmp_path):
     today's header (new columns empty), rows after the checkpoint are dropped as before."""
     import csv
 
-    from docrl_jax import cli
-    from docrl_jax.run_dir import METRIC_COLUMNS
+    from docrl_jax.run_dir import METRIC_COLUMNS, truncate_metrics
     old = [c for c in METRIC_COLUMNS if c not in FAILURE_COLUMNS]
     path = tmp_path / "metrics.csv"
     with open(path, "w", newline="") as fh:
@@ -57,7 +56,7 @@ def test_resume_gives_an_older_metrics_csv_the_failure_columns(tmp_path):
         w.writerow(old)
         for steps in (0, 100, 200):
             w.writerow([steps if c == "env_steps" else f"{c}-{steps}" for c in old])
-    cli._truncate_csv(path, 100)
+    truncate_metrics(path, 100)
     rows = list(csv.DictReader(open(path)))
     assert list(rows[0]) == METRIC_COLUMNS and [r["env_steps"] for r in rows] == ["0", "100"]
     assert rows[1]["success_water_to_air"] == "success_water_to_air-100"
