@@ -35,6 +35,8 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import run_meta  # noqa: E402
 
+from docrl_jax.run_dir import FAILURE_COLUMNS  # noqa: E402
+
 
 def read_rows(path: str) -> list[dict]:
     if not os.path.exists(path):
@@ -109,9 +111,7 @@ def run_seed(args, seed: int, cache_dir: str | None, out_dir: str, tag: str) -> 
             "final_both_at_target": bool(final["air_to_water"] is not None and final["air_to_water"] >= args.target
                                          and final["water_to_air"] >= args.target),
             "curve": [{k: r.get(k) for k in ("env_steps", "wall_time_s", "success_rate", "success_air_to_water",
-                                             "success_water_to_air", "grad_updates", "collision_air_to_water",
-                                             "out_of_bounds_air_to_water", "collision_water_to_air",
-                                             "out_of_bounds_water_to_air")} for r in rows]}
+                                             "success_water_to_air", "grad_updates", *FAILURE_COLUMNS)} for r in rows]}
 
 
 def main(argv=None) -> int:

@@ -343,6 +343,7 @@ def parse_env_overrides(items: Sequence[str]) -> dict[str, Any]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from docrl_jax.policy import CHECKPOINT_POLICIES
     p = argparse.ArgumentParser(prog="python -m docrl_jax.evaluate", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
@@ -351,7 +352,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed-index", default="0",
                    help="seed(s) of --run to evaluate, comma-separated, e.g. 0,1,2 (default 0); several seeds "
                         "also give a table of mean and spread over seeds")
-    p.add_argument("--which", default="final", choices=("final", "best"),
+    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
                    help="with --run: the final policy of the latest checkpoint (default; what tables report) "
                         "or each seed's best evaluated policy kept beside it (train.track_best_policy)")
     p.add_argument("--label", help="method name in the tables (default: 'BBA' or the run dir's name)")

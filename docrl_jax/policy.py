@@ -18,6 +18,11 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 
+# Which policy of a run's checkpoint to load: the run's (final) policy, or each seed's best evaluated one
+# (docrl_jax.best_policy). Shared by load_policy and the evaluator's --which.
+CHECKPOINT_POLICIES = ("final", "best")
+
+
 class RunDirError(ValueError):
     """A run directory is missing, incomplete or incompatible; the message says which and why."""
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from docrl_jax import checkpoint
 from docrl_jax.config import Config, ConfigError, load_config
-from docrl_jax.policy import Policy, RunDirError
+from docrl_jax.policy import CHECKPOINT_POLICIES, Policy, RunDirError
 
 CONFIG_FILE = "config.yaml"
 METRICS_FILE = "metrics.csv"
@@ -63,9 +63,6 @@ def policy_abstract(agent, config: Config):
     return jax.eval_shape(jax.vmap(agent.init), keys).actor
 
 
-WHICH = ("final", "best")
-
-
 def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") -> Policy:
     """The deterministic policy of seed `seed_index` from the latest checkpoint of `run_dir`: the run's
     policy at that checkpoint (`which="final"`, what tables report) or the best evaluated one so far
@@ -74,8 +71,8 @@ def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") 
     from docrl_jax import best_policy
     from docrl_jax.algorithms import make_agent
 
-    if which not in WHICH:
-        raise RunDirError(f"which={which!r}: valid choices are {', '.join(WHICH)}")
+    if which not in CHECKPOINT_POLICIES:
+        raise RunDirError(f"which={which!r}: valid choices are {', '.join(CHECKPOINT_POLICIES)}")
     config = read_config(run_dir)
     if not 0 <= seed_index < config.train.num_seeds:
         raise RunDirError(f"seed_index={seed_index}: the run has num_seeds={config.train.num_seeds} "

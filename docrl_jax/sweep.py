@@ -53,7 +53,8 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, hparams_neutral
 from docrl_jax.config import Config, ConfigError, check_replay_memory, field_docs, load_config, parse_overrides, \
     to_yaml, validate
 from docrl_jax.policy import RunDirError
-from docrl_jax.run_dir import CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, accumulate, append_rows, empty_pending, eval_rows
+from docrl_jax.run_dir import (CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, accumulate, append_rows, empty_pending,
+                               eval_rows)
 
 SWEEP_FILE, TABLE_CSV, TABLE_MD = "sweep.json", "sweep.csv", "sweep.md"
 TRACED_KEYS = tuple(f"agent.{k}" for k in HPARAM_KEYS)
@@ -260,7 +261,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console) -> dict[str, li
         ev = placement.get(evaluate(state.agent.actor_average, ekeys))
         trained = placement.get(evaluate(state.agent.actor, ekeys)) if any(trained_actor) else {}
         out = eval_rows(cfg, seeds, steps, time.time() - start, pending, ev, trained,
-                            placement.get(state.agent.updates))
+                        placement.get(state.agent.updates))
         for row, (c, _), wants in zip(out, rows, trained_actor):
             if not wants:
                 for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
@@ -269,7 +270,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console) -> dict[str, li
                                                   for k, v in c.values.items()}})
         for c in group.combinations:
             append_rows(run_dir / c.name / METRICS_FILE, [r for r in out if r["combination"] == c.name],
-                            _columns(grid))
+                        _columns(grid))
         pending = empty_pending(len(rows))
         mean = {c.name: np.mean([r["success_rate"] for r in out if r["combination"] == c.name])
                 for c in group.combinations}
