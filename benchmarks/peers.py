@@ -11,7 +11,8 @@ Time to success. Every (trainer, configuration, seed) is its own launch of this 
 so its clock starts before Python starts and includes imports, environment construction and every
 compilation, as in benchmarks/time_to_success.py. The trainer is `brax.training.agents.{sac,ppo}.train`,
 unchanged, on `BraxHUAUV(scenario=2)` (docrl_jax/envs/brax_env.py; Brax's own Vmap/Episode/AutoReset
-wrappers, episode_length 500). At each of Brax's evaluation points the worker takes the policy's
+wrappers, episode_length 500) with the env settings of our config --env-from (default td3_lstm: the
+same training start distribution, `goal_clearance` 0.6, as the trainer it is compared with). At each of Brax's evaluation points the worker takes the policy's
 current parameters (PPO: `policy_params_fn`; SAC, which has no such callback in brax 0.14.2: the
 checkpoint Brax writes to `checkpoint_logdir` just before calling `progress_fn`) and runs OUR
 evaluation (docrl_jax/evaluate.py `evaluate_policy`): the paper's air_to_water and water_to_air pairs
@@ -146,6 +147,15 @@ def configs(args) -> list[tuple[str, dict, str]]:
     return out
 
 
+def env_settings(config_name: str) -> dict:
+    """The env keyword overrides of our packaged config `config_name` (what our trainer trains on)."""
+    from docrl_jax.config import env_kwargs, load_config
+    c = load_config(config_name, backend="cpu", check_memory=False)
+    if c.env.scenario != 2:
+        raise SystemExit(f"--env-from {config_name}: trains on scenario {c.env.scenario}; the peers train on 2")
+    return env_kwargs(c)
+
+
 # ----------------------------------------------------------------------------------------- worker
 
 class _Stop(Exception):
@@ -165,9 +175,9 @@ def worker(spec: dict) -> None:
     from docrl_jax.policy import Policy
 
     trainer, cfg = spec["trainer"], dict(spec["config"])
-    env = BraxHUAUV(scenario=spec["scenario"], episode_length=cfg["episode_length"])
+    env = BraxHUAUV(scenario=spec["scenario"], episode_length=cfg["episode_length"], **spec["env"])
     nets = {k: tuple(v) for k, v in spec["networks"].items()}
-    result = {"trainer": trainer, "seed": spec["seed"], "config": cfg, "networks": spec["networks"],
+    result = {"trainer": trainer, "seed": spec["seed"], "config": cfg, "networks": spec["networks"], "env": spec["env"],
               "evals": [], "reached": False, "stop_reason": "end"}
     eval_total = 0.0
     state: dict = {}
@@ -261,7 +271,8 @@ def run_one(args, trainer: str, cfg: dict, seed: int, out_dir: str, tag: str, in
     result_path = log_path[:-4] + ".json"
     spec = {"trainer": trainer, "config": cfg, "networks": {k: list(v) for k, v in nets.items()}, "seed": seed,
             "scenario": 2, "trials": args.trials, "max_steps": args.max_steps, "eval_seed": args.eval_seed,
-            "target": args.target, "budget_s": args.budget_s, "to_end": args.to_end, "result_path": result_path}
+            "target": args.target, "budget_s": args.budget_s, "to_end": args.to_end, "result_path": result_path,
+            "env": env_settings(args.env_from)}
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     if args.smoke:
         env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} {SMOKE_XLA_FLAGS}"
@@ -328,7 +339,7 @@ def write_tables(args, meta: dict, runs: list[dict], tag: str, summary: list[str
              "best": f"{x['best']['air_to_water']} / {x['best']['water_to_air']}",
              "final": f"{x['final']['air_to_water']} / {x['final']['water_to_air']}" if x["final"] else "–",
              "stop": x.get("stop_reason", "?"), "elapsed": x.get("elapsed_s", "–")} for x in runs]
-    settings = {"target": args.target, "budget_s": args.budget_s, "trials": args.trials, "max_steps": args.max_steps,
+    settings = {"env_from": args.env_from, "env": env_settings(args.env_from), "target": args.target, "budget_s": args.budget_s, "trials": args.trials, "max_steps": args.max_steps,
                 "eval_seed": args.eval_seed, "to_end": args.to_end, "smoke": args.smoke}
     write_results(args.out, f"peers_{tag}", f"Brax peers on our env: launch to {args.target:.0%} in both directions",
                   meta, rows, [("trainer / config", "label"), ("seed", "seed"), ("reached", "reached"),
@@ -390,6 +401,8 @@ def main(argv=None) -> int:
     ap.add_argument("--sweep", action="append", default=[], metavar="[TRAINER.]KEY=V1,V2",
                     help="a grid axis (e.g. num_envs=128,512; sac.grad_updates_per_step=16,64; ppo.unroll_length=5,10)")
     ap.add_argument("--target", type=float, default=0.9)
+    ap.add_argument("--env-from", default="td3_lstm",
+                    help="our config whose env settings (e.g. goal_clearance) the peers train with")
     ap.add_argument("--budget-s", type=float, default=900.0, help="per run, from its launch")
     ap.add_argument("--grace-s", type=float, default=600.0, help="beyond the budget before a run is killed")
     ap.add_argument("--to-end", action="store_true", help="train to num_timesteps even after the target")
