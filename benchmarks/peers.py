@@ -189,12 +189,12 @@ def worker(spec: dict) -> None:
     def judge(step: int, make_policy, params) -> None:
         nonlocal eval_total
         t0 = time.time()
-        if "act" not in state:   # one act function per run: our rollout compiles once
-            def act(p, carry, obs, info, key):
+        if "act" not in state:   # one act and init_carry per run: our rollout is cached by their ids,
+            def act(p, carry, obs, info, key):   # so it compiles once, not at every evaluation
                 action, _ = make_policy(p, deterministic=True)(obs, key)
                 return carry, action
-            state["act"] = act
-        policy = Policy(f"brax_{trainer}", params, lambda: jnp.zeros(()), state["act"])
+            state["act"], state["init_carry"] = act, (lambda: jnp.zeros(()))
+        policy = Policy(f"brax_{trainer}", params, state["init_carry"], state["act"])
         rows = evaluate.evaluate_policy(policy, f"brax_{trainer}", [spec["scenario"]], evaluate.DIRECTIONS,
                                         spec["trials"], spec["max_steps"], seed=spec["eval_seed"])
         succ = {r["direction"]: r["success_rate"] for r, _ in rows}
