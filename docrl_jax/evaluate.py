@@ -2,6 +2,7 @@
 
     python -m docrl_jax.evaluate --policy bba --trials 100 --scenarios 1,2,3 --out results/bba
     python -m docrl_jax.evaluate --run runs/docrl_d --seed-index 0 --out results/docrl_d
+    python -m docrl_jax.evaluate --run runs/td3_seed0 runs/td3_seed1 runs/td3_seed2 --out results/td3  # 3 launches
     python -m docrl_jax.evaluate --curves runs/docrl_d runs/docrl_s --out results/curves
 
 Protocol (paper, "Experimental Results"; shared/research/original-code.md section 7):
@@ -40,6 +41,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+import yaml
 
 DIRECTIONS = ("air_to_water", "water_to_air")
 SHORT = {"air_to_water": "A-W", "water_to_air": "W-A"}
@@ -326,7 +328,6 @@ def parse_directions(text: str) -> list[str]:
 
 
 def parse_env_overrides(items: Sequence[str]) -> dict[str, Any]:
-    import yaml
     from docrl_jax.envs import param_docs
     valid = param_docs()
     out = {}
@@ -347,11 +348,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m docrl_jax.evaluate", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory (config.yaml + checkpoints)")
+    src.add_argument("--run", metavar="RUN_DIR", nargs="+",
+                     help="a trainer run directory (config.yaml + checkpoints); several run directories of one "
+                          "config (separate launches, e.g. one per seed) are evaluated as the seeds of one method")
     src.add_argument("--policy", metavar="NAME", help=f"a built-in policy: {', '.join(POLICIES)}")
     p.add_argument("--seed-index", default="0",
                    help="seed(s) of --run to evaluate, comma-separated, e.g. 0,1,2 (default 0); several seeds "
-                        "also give a table of mean and spread over seeds")
+                        "also give a table of mean and spread over seeds. With several run directories each "
+                        "gives these seeds, numbered 0, 1, ... in the order given (results.json maps them back)")
     p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
                    help="with --run: the final policy of the latest checkpoint (default; what tables report) "
                         "or each seed's best evaluated policy kept beside it (train.track_best_policy)")
@@ -391,8 +395,13 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
     cfg = {"scenarios": parse_scenarios(args.scenarios), "directions": parse_directions(args.directions),
            "env": parse_env_overrides(args.env), "seed_indices": parse_seed_indices(args.seed_index)}
-    if args.run is not None:
-        check_run_dir(args.run)
+    for run in args.run or []:
+        check_run_dir(run)
+    if args.run and len(args.run) > 1 and args.label is None:
+        names = {config_name(run) for run in args.run}
+        if len(names) != 1:
+            raise UsageError(f"--run: the run directories hold different configs ({', '.join(sorted(names))}); "
+                             "evaluate one config at a time, or name the method with --label")
     from docrl_jax.plotting import find_metrics_csv  # evaluate -> plotting, never the other way
     for d in args.curves or []:
         try:
@@ -400,6 +409,17 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         except RunDirError as e:
             raise UsageError(str(e)) from None
     return cfg
+
+
+def _same_agent(run_a: str, run_b: str) -> bool:
+    """Whether two run directories' configs have the same `agent` section (hence the same networks)."""
+    if run_a == run_b:
+        return True
+    agents = []
+    for run in (run_a, run_b):
+        with open(Path(run) / "config.yaml") as f:
+            agents.append((yaml.safe_load(f) or {}).get("agent"))
+    return agents[0] == agents[1]
 
 
 def check_run_dir(run_dir: str | os.PathLike) -> Path:
@@ -459,8 +479,20 @@ def parse_seed_indices(text: str) -> list[int]:
     return list(dict.fromkeys(vals))
 
 
-def load_policy_for(args, env_params, seed_index: int) -> tuple[Any, str]:
-    """(policy, label) for --policy or for one seed of --run (the trainer is imported lazily)."""
+def config_name(run_dir: str | os.PathLike) -> str:
+    """The `name` in a run directory's config.yaml (its folder's name if it has none)."""
+    with open(Path(run_dir) / "config.yaml") as f:
+        return str((yaml.safe_load(f) or {}).get("name") or Path(run_dir).resolve().name)
+
+
+def policy_sources(args, seed_indices: list[int]) -> list[tuple[str, int]]:
+    """(run dir, seed index within it) for each evaluated seed of --run, in the order given."""
+    return [(run, s) for run in args.run for s in seed_indices]
+
+
+def load_policy_for(args, env_params, seed_index: int, run: str | None = None) -> tuple[Any, str]:
+    """(policy, label) for --policy or for one seed of the run directory `run` (the trainer is imported
+    lazily). Several run directories are labelled by their config's name, one by its folder's name."""
     from docrl_jax.policy import RunDirError
     if args.policy is not None:
         from docrl_jax.baselines.bba import make_bba
@@ -471,9 +503,10 @@ def load_policy_for(args, env_params, seed_index: int) -> tuple[Any, str]:
     except ImportError as e:
         raise RunDirError(f"--run needs the trainer module docrl_jax.train, which cannot be imported here ({e}); "
                           f"built-in policies work without it: --policy {', '.join(POLICIES)}") from None
-    policy = load_policy(args.run, seed_index=seed_index, which=args.which)
-    print(f"{Path(args.run).name}: {policy.source}", flush=True)
-    return policy, args.label or Path(args.run).resolve().name + (" (best)" if args.which == "best" else "")
+    policy = load_policy(run, seed_index=seed_index, which=args.which)
+    print(f"{Path(run).name}: {policy.source}", flush=True)
+    name = config_name(run) if len(args.run) > 1 else Path(run).resolve().name
+    return policy, args.label or name + (" (best)" if args.which == "best" else "")
 
 
 def aggregate_seeds(rows: list[dict]) -> list[dict]:
@@ -544,11 +577,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
     import jax
-    seed_indices = cfg["seed_indices"] if args.run is not None else [None]
+    sources = policy_sources(args, cfg["seed_indices"]) if args.run is not None else [(None, None)]
+    # One run: its own seed indices. Several: the evaluated seeds are numbered 0, 1, ... in order.
+    seed_indices = ([s for _, s in sources] if args.run is not None and len(args.run) == 1
+                    else list(range(len(sources))) if args.run is not None else [None])
     rows, trial_rows = [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
             "run": args.run, "which": args.which if args.run else None, "policy": args.policy,
-            "seed_indices": seed_indices, "policy_sources": {}, "trials": args.trials,
+            "seed_indices": seed_indices, "policy_sources": {},
+            "seed_runs": {str(i): {"run": run, "seed_index": s} for i, (run, s) in zip(seed_indices, sources)}
+            if args.run is not None else {}, "trials": args.trials,
             "max_steps": args.max_steps, "seed": args.seed, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
             "trial_spec": asdict(TrialSpec()), "nominal_yaw": NOMINAL_YAW,
             "bba_depth_phase": args.bba_depth_phase if args.policy else None,
@@ -577,17 +615,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     for scenario in cfg["scenarios"]:
         env = make_eval_env(scenario, args.max_steps, **cfg["env"])
-        for seed_index in seed_indices:
+        for seed_index, (run, run_seed) in zip(seed_indices, sources):
             if seed_index not in policies:
                 try:
-                    policy, method = load_policy_for(args, env.params, seed_index)
+                    policy, method = load_policy_for(args, env.params, run_seed, run)
                 except RunDirError as e:
                     parser.error(str(e))
-                if policies and args.run is not None:
-                    # The seeds of one run share their networks: keep the first seed's functions so
-                    # the compiled rollout (cached per act function) serves every seed.
-                    first = next(iter(policies.values()))[0]
-                    policy = replace(first, params=policy.params, source=policy.source)
+                same_nets = [p for p, r in zip(policies.values(), sources) if _same_agent(r[0], run)]
+                if same_nets:
+                    # Seeds with the same agent settings share their networks: keep the first one's
+                    # functions so the compiled rollout (cached per act function) serves every seed.
+                    policy = replace(same_nets[0][0], params=policy.params, source=policy.source)
                 policies[seed_index] = (policy, method)
                 if policy.source:
                     meta["policy_sources"][str(seed_index)] = policy.source

@@ -413,3 +413,43 @@ def test_cli_run_seeds_share_one_compile(monkeypatch, tmp_path):
     rows = json.loads((out / "results.json").read_text())["results"]
     assert [(r["seed_index"], r["successes"], r["collisions"]) for r in rows] == [(0, N, 0), (1, 0, N)]
     assert rows[0]["compile_s"] is not None and rows[1]["compile_s"] is None and rows[1]["run_s"] is not None
+
+
+def test_cli_several_runs_are_the_seeds_of_one_method(monkeypatch, tmp_path, capsys):
+    """Separate launches of one config (one run dir per seed, as time_to_success makes them) are
+    evaluated as one method: seeds numbered in the order given, each run's own parameters (run B's
+    make the scripted policy dive), one compiled rollout, the mapping back to the runs in results.json."""
+    import sys
+    import types
+    import jax.numpy as jnp
+    from docrl_jax.policy import Policy
+    base = straight_line()
+    mod = types.ModuleType("docrl_jax.train")
+
+    def load_policy(run_dir, seed_index=0, which="final"):
+        return Policy(name="p", params={"dive": jnp.asarray(str(run_dir).endswith("B"))},
+                      init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a), source=f"{run_dir}")
+    mod.load_policy = load_policy
+    monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
+    runs = []
+    for name in ("A", "B"):
+        run = tmp_path / f"td3_lstm_seed{name}"
+        run.mkdir()
+        (run / "config.yaml").write_text("name: td3_lstm\nagent: {algo: td3}\n")
+        runs.append(str(run))
+    out = tmp_path / "out"
+    common = ["--trials", str(N), "--scenarios", "1", "--directions", "a-w", "--max-steps", str(MAX_STEPS),
+              "--figures", "0", "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]"]
+    assert evaluate.main(["--run", *runs, *common, "--out", str(out)]) == 0
+    js = json.loads((out / "results.json").read_text())
+    rows = js["results"]
+    assert [(r["method"], r["seed_index"], r["successes"], r["collisions"]) for r in rows] == [
+        ("td3_lstm", 0, N, 0), ("td3_lstm", 1, 0, N)]
+    assert rows[1]["compile_s"] is None   # run B reused run A's compiled rollout (same agent settings)
+    assert js["meta"]["seed_runs"] == {"0": {"run": runs[0], "seed_index": 0}, "1": {"run": runs[1], "seed_index": 0}}
+    assert "| A-W td3_lstm | " in (out / "results.md").read_text()
+    # runs of different configs need a --label
+    (tmp_path / "td3_lstm_seedB" / "config.yaml").write_text("name: sac_lstm\nagent: {algo: sac}\n")
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", *runs, *common, "--out", str(out)])
+    assert e.value.code == 2 and "different configs (sac_lstm, td3_lstm)" in capsys.readouterr().err
