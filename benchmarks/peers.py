@@ -167,7 +167,6 @@ def worker(spec: dict) -> None:
     launch = spec["launch"]
     import functools
 
-    import jax
     import jax.numpy as jnp
 
     from docrl_jax import evaluate

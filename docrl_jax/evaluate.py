@@ -36,31 +36,21 @@ import math
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 import yaml
 
-DIRECTIONS = ("air_to_water", "water_to_air")
+# What a trial is (env settings, nominal yaw, jitter) lives in docrl_jax.protocol, shared with the
+# trainer's training-time estimate of the protocol (train_eval).
+from docrl_jax.protocol import DEFAULT_EVAL_ENV, DIRECTIONS, NOMINAL_YAW, TrialSpec, trial_starts
+
 SHORT = {"air_to_water": "A-W", "water_to_air": "W-A"}
 POLICIES = ("bba",)
 SCENARIOS = (1, 2, 3)
 OUTCOMES = ("success", "collision", "out_of_bounds", "timeout", "diverged")
-
-# Env settings of the evaluation (on top of the scenario's defaults; --env KEY=VALUE overrides).
-DEFAULT_EVAL_ENV = {"sensor_noise_std": 0.01, "wind": True}
-# Nominal start yaw per direction (original spawn yaw 0; the commented water spawn has yaw -1.57).
-NOMINAL_YAW = {"air_to_water": 0.0, "water_to_air": -math.pi / 2}
-
-
-@dataclass(frozen=True)
-class TrialSpec:
-    """How the N trials of one (scenario, direction) differ from each other."""
-    start_jitter_xy: float = 0.1   # m, uniform in +-this on x and y
-    yaw_jitter: float = 0.1        # rad, uniform in +-this around the nominal yaw
-
 
 # ---------------------------------------------------------------------------------------- core
 
@@ -80,17 +70,6 @@ def make_eval_env(scenario: int, max_steps: int = 500, **overrides):
     if key not in _ENVS:
         _ENVS[key] = envs.make(scenario=scenario, **kw)
     return _ENVS[key]
-
-
-def trial_starts(key, start, num_trials: int, yaw: float, spec: TrialSpec = TrialSpec()):
-    """Jittered start positions (N, 3) and yaws (N,)."""
-    import jax
-    import jax.numpy as jnp
-    k_xy, k_yaw = jax.random.split(key)
-    xy = jax.random.uniform(k_xy, (num_trials, 2), minval=-spec.start_jitter_xy, maxval=spec.start_jitter_xy)
-    pos = jnp.asarray(start, jnp.float32)[None] + jnp.concatenate([xy, jnp.zeros((num_trials, 1))], -1)
-    yaws = yaw + jax.random.uniform(k_yaw, (num_trials,), minval=-spec.yaw_jitter, maxval=spec.yaw_jitter)
-    return pos, yaws
 
 
 _ROLLOUTS: dict = {}

@@ -5,10 +5,11 @@ episodes run in parallel with the deterministic policy (TD3/DDPG: actor output; 
 each until the goal is reached (success), a collision or bound ends it, or the step limit
 (env.max_episode_steps) truncates it. Starts and goals follow the training distribution; with
 `train.eval_paper_pairs` the paper's air-to-water and water-to-air pairs (`envs.eval_pair`) are run
-too, with a random start yaw, and for each pair the fractions of episodes that ended in a collision
-or out of bounds are reported too (the rest of the failures are time-outs): a direction that stalls
-below 90 % says why in metrics.csv. The full protocol of the paper (100 trials, times in air/water) is the
-evaluator's job, not this module's.
+too, from the evaluator's trial starts (`train.eval_pair_starts`, see `pair_starts`), and for each pair
+the fractions of episodes that ended in a collision or out of bounds are reported too (the rest of the
+failures are time-outs): a direction that stalls below 90 % says why in metrics.csv. The full protocol
+of the paper (100 trials, times in air/water, 0.01 m range noise) is the evaluator's job, not this
+module's; these episodes use the training env's settings.
 """
 
 from __future__ import annotations
@@ -18,6 +19,19 @@ import jax.numpy as jnp
 
 import docrl_jax.envs as envs
 from docrl_jax.config import Config, env_kwargs
+from docrl_jax.protocol import NOMINAL_YAW, trial_starts
+
+
+def pair_starts(how: str, key: jax.Array, start, direction: str, n: int) -> tuple[jax.Array, jax.Array]:
+    """Start positions (n, 3) and yaws (n,) of the paper-pair episodes of one direction.
+
+    'paper': the evaluator's trials (`evaluate.trial_starts`: nominal yaw of the direction +-0.1 rad,
+    position +-0.1 m), so the training-time score estimates the paper protocol's. 'random_yaw': the
+    exact start, facing a uniformly random yaw (harder: the vehicle must first turn towards its goal)."""
+    if how == "paper":
+        return trial_starts(key, start, n, NOMINAL_YAW[direction])
+    positions = jnp.broadcast_to(jnp.asarray(start, jnp.float32), (n, 3))
+    return positions, jax.random.uniform(key, (n,), minval=-jnp.pi, maxval=jnp.pi)
 
 
 def make_evaluate(config: Config, act, init_carry, memory: bool):
@@ -55,10 +69,10 @@ def make_evaluate(config: Config, act, init_carry, memory: bool):
         if config.train.eval_paper_pairs:
             for direction, k in zip(("air_to_water", "water_to_air"), jax.random.split(k_pairs)):
                 start, goal = envs.eval_pair(config.env.scenario, direction)
-                k_yaw, k_reset = jax.random.split(k)
-                yaws = jax.random.uniform(k_yaw, (n,), minval=-jnp.pi, maxval=jnp.pi)
-                groups.append(jax.vmap(lambda kk, y: env.reset_to(kk, jnp.array(start), y, jnp.array(goal)))(
-                    jax.random.split(k_reset, n), yaws))
+                k_start, k_reset = jax.random.split(k)
+                positions, yaws = pair_starts(config.train.eval_pair_starts, k_start, start, direction, n)
+                groups.append(jax.vmap(lambda kk, p, y: env.reset_to(kk, p, y, jnp.array(goal)))(
+                    jax.random.split(k_reset, n), positions, yaws))
                 names.append(f"success_{direction}")
         # One batch of all groups: the env step is compiled once.
         states = jax.tree.map(lambda *xs: jnp.concatenate(xs), *groups)

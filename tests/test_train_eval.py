@@ -61,3 +61,30 @@ def test_resume_gives_an_older_metrics_csv_the_failure_columns(tmp_path):
     assert list(rows[0]) == METRIC_COLUMNS and [r["env_steps"] for r in rows] == ["0", "100"]
     assert rows[1]["success_water_to_air"] == "success_water_to_air-100"
     assert all(rows[1][c] == "" for c in FAILURE_COLUMNS)
+
+
+def test_paper_pair_starts_are_the_evaluators_trials():
+    """train.eval_pair_starts 'paper' draws the evaluator's trial starts (protocol.trial_starts: the same
+    numbers for the same key), 'random_yaw' the exact start facing any way."""
+    from docrl_jax import protocol
+    from docrl_jax.envs import eval_pair
+    from docrl_jax.train_eval import pair_starts
+    key = jax.random.PRNGKey(3)
+    for direction in protocol.DIRECTIONS:
+        start, _ = eval_pair(2, direction)
+        pos, yaw = pair_starts("paper", key, start, direction, 200)
+        ref_pos, ref_yaw = protocol.trial_starts(key, start, 200, protocol.NOMINAL_YAW[direction])
+        np.testing.assert_array_equal(pos, ref_pos)
+        np.testing.assert_array_equal(yaw, ref_yaw)
+        assert np.all(np.abs(yaw - protocol.NOMINAL_YAW[direction]) <= 0.1 + 1e-6)
+        assert np.all(np.abs(pos - np.asarray(start)) <= 0.1 + 1e-6) and np.ptp(pos[:, 0]) > 0.1
+        pos, yaw = pair_starts("random_yaw", key, start, direction, 200)
+        np.testing.assert_array_equal(pos, np.broadcast_to(np.asarray(start, np.float32), (200, 3)))
+        assert yaw.min() < -2.5 and yaw.max() > 2.5
+
+
+def test_eval_pair_starts_setting():
+    assert load_config("td3_lstm").train.eval_pair_starts == "paper"
+    from docrl_jax.config import ConfigError
+    with pytest.raises(ConfigError, match="valid choices are \\['paper', 'random_yaw'\\]"):
+        load_config("td3_lstm", ["train.eval_pair_starts=random"])
