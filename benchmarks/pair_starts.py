@@ -1,0 +1,55 @@
+"""How much the start heading decides a paper-pair score: each run's final policy on the paper's
+pairs, from the evaluator's trial starts (nominal yaw +-0.1 rad, +-0.1 m) and from the exact start
+facing a uniformly random yaw (what the trainer's own evaluation used before 2026-11-24), with the
+same trial keys, the evaluator's env (0.01 m range noise, wind) and step limit. CPU is enough.
+
+    python benchmarks/pair_starts.py --runs R/td3_lstm_seed0 R/td3_lstm_seed1 R/td3_lstm_seed2 --out OUT
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import run_meta, write_results  # noqa: E402
+
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", nargs="+", required=True, help="trainer run directories (seed index 0 of each)")
+    ap.add_argument("--scenario", type=int, default=2)
+    ap.add_argument("--trials", type=int, default=100)
+    ap.add_argument("--key", type=int, default=1, help="PRNG key of the trials (the same for both starts)")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--tag", default="pair_starts")
+    args = ap.parse_args(argv)
+
+    import jax
+
+    from docrl_jax import envs, evaluate, protocol
+    from docrl_jax.train import load_policy
+    env = evaluate.make_eval_env(args.scenario, 500)
+    meta, rows = run_meta(), []
+    for run in args.runs:
+        policy = load_policy(run)
+        row = {"run": os.path.basename(os.path.normpath(run))}
+        for direction in protocol.DIRECTIONS:
+            start, goal = envs.eval_pair(args.scenario, direction)
+            for name, (jitter, yaw_jitter) in (("paper", (0.1, 0.1)), ("random_yaw", (0.0, math.pi))):
+                spec = protocol.TrialSpec(start_jitter_xy=jitter, yaw_jitter=yaw_jitter)
+                t = evaluate.run_trials(env, policy, start, goal, jax.random.PRNGKey(args.key), args.trials, 500,
+                                        protocol.NOMINAL_YAW[direction], spec)
+                row[f"{evaluate.SHORT[direction]} {name}"] = int(t["success"].sum())
+        rows.append(row)
+        print(row, flush=True)
+        write_results(args.out, args.tag, f"Paper-pair successes of {args.trials} by start heading, scenario "
+                      f"{args.scenario}", meta, rows, [("run", "run")] + [(k, k) for k in row if k != "run"])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
