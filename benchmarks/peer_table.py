@@ -4,24 +4,25 @@
     python benchmarks/peer_table.py --ours R/time_to_success_td3_lstm.json R/time_to_success_sac_lstm.json \
         --peers R/peers_sac_*.json R/peers_ppo_*.json --out R
 
-Reads the JSON the two scripts write, groups runs by trainer and configuration (runs with the same settings
-from several peers.py files, e.g. seeds split over GPUs, are one group; a Brax group is named by the
-settings that differ from peers.py's DEFAULTS, Brax's published recipes), and writes `peer_table.md` (one row per
-group: each seed's time, the median, the ratio of the median to our first --ours group's median, and
-each seed's best and final evaluation) and `peer_success_vs_time.png` (the weaker of the two directions'
-success against seconds since launch, every run a line, every group one colour).
+Reads the JSON the two scripts write and groups the runs by trainer and configuration: runs with the
+same settings from several peers.py files (e.g. seeds split over GPUs) are one group, and a Brax group
+is named by the settings that differ from peers.py's DEFAULTS (Brax's published recipes). Writes
+`peer_table.md`, one row per group (each seed's time, the median, the median's ratio to the first
+--ours group's, each seed's best and final evaluation, env steps/s and updates/s), and
+`peer_success_vs_time.png` (the weaker direction's success against seconds since launch; every run a
+line, every group a colour).
 
 Times are launch (process start, compilation included) to the end of the first evaluation with both
-directions >= the target, as each script measured it. For Brax's trainers that includes our evaluation
-of their policy (its first call compiles, ~20 s on an H200), so the table also gives their time without
-it; our trainers' own periodic evaluation is part of their run, as a user gets it. Env steps/s and
-gradient updates/s run from a run's first evaluation to its last (compilation left out; the trainer's
-own evaluations included, ours of Brax's policies left out). An update is one optimiser step of each
-trainer's own batch: 1,024 sequences of 8 trained steps for ours, 2,048 transitions for Brax SAC,
-a minibatch of batch_size x unroll_length steps for Brax PPO. A group's median counts a run that did not reach
-the target as infinitely slow, so a median is only given when most runs reached it. For our runs the
-curve's clock is the trainer's own (`wall_time_s` in metrics.csv) plus the launch offset that
-time_to_success measured for that seed.
+directions >= the target, as each script measured it. For Brax's trainers that includes our
+evaluation of their policy (its first call compiles, ~20 s on an H200), so the table also gives their
+time without it; our trainers' own periodic evaluation is part of their run, as a user gets it. A
+group's median counts a run that did not reach the target as infinitely slow. Our curves are on the
+trainer's clock (`wall_time_s` in metrics.csv) plus the launch offset time_to_success measured.
+
+Env steps/s and gradient updates/s run from a run's first evaluation to its last (compilation left
+out; the trainer's own evaluations included, ours of Brax's policies left out). An update is one
+optimiser step on each trainer's own batch: 1,024 sequences of 8 trained steps for ours, 2,048
+transitions for Brax SAC, a minibatch of batch_size x unroll_length steps for Brax PPO.
 """
 
 from __future__ import annotations
@@ -77,12 +78,13 @@ def peer_groups(paths: list[str]) -> dict[str, list[dict]]:
             changed = {k: v for k, v in r["config"].items() if DEFAULTS[r["trainer"]].get(k) != v}
             label = f"Brax {r['trainer']}" + (f" ({', '.join(f'{k}={v}' for k, v in changed.items())})"
                                               if changed else " (Brax's defaults)")
-            groups.setdefault(label, []).append({"rates": brax_rates(r),
+            groups.setdefault(label, []).append({
                 "seed": r["seed"], "reached": r["reached"], "time": r.get("time_to_target_s"),
                 "time_excl": r.get("time_to_target_excl_eval_s"),
                 "best": (r["best"]["air_to_water"], r["best"]["water_to_air"]),
                 "final": (final.get("air_to_water"), final.get("water_to_air")),
                 "stop": r.get("stop_reason"), "elapsed": r.get("elapsed_s"),
+                "rates": brax_rates(r),
                 "curve": [(e["wall_s"], min(e["air_to_water"], e["water_to_air"])) for e in r["evals"]]})
     return groups
 
@@ -142,7 +144,8 @@ def figure(groups: dict[str, list[dict]], target: float, path: str, title: str) 
         colour = f"C{i}"
         for j, r in enumerate(sorted(runs, key=lambda r: r["seed"])):
             xs, ys = zip(*r["curve"]) if r["curve"] else ((), ())
-            ax.plot(xs, ys, color=colour, marker=".", lw=1.2, alpha=0.85, label=textwrap.fill(label, 90) if j == 0 else None)
+            ax.plot(xs, ys, color=colour, marker=".", lw=1.2, alpha=0.85,
+                    label=textwrap.fill(label, 90) if j == 0 else None)
             if r["reached"]:
                 ax.plot([r["time"]], [target], color=colour, marker="o", ms=7, mfc="none")
     ax.axhline(target, color="grey", ls="--", lw=0.8)
