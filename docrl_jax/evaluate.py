@@ -390,15 +390,14 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     return cfg
 
 
+def _run_config(run_dir: str | os.PathLike) -> dict:
+    with open(Path(run_dir) / "config.yaml") as f:
+        return yaml.safe_load(f) or {}
+
+
 def _same_agent(run_a: str, run_b: str) -> bool:
     """Whether two run directories' configs have the same `agent` section (hence the same networks)."""
-    if run_a == run_b:
-        return True
-    agents = []
-    for run in (run_a, run_b):
-        with open(Path(run) / "config.yaml") as f:
-            agents.append((yaml.safe_load(f) or {}).get("agent"))
-    return agents[0] == agents[1]
+    return run_a == run_b or _run_config(run_a).get("agent") == _run_config(run_b).get("agent")
 
 
 def check_run_dir(run_dir: str | os.PathLike) -> Path:
@@ -460,8 +459,7 @@ def parse_seed_indices(text: str) -> list[int]:
 
 def config_name(run_dir: str | os.PathLike) -> str:
     """The `name` in a run directory's config.yaml (its folder's name if it has none)."""
-    with open(Path(run_dir) / "config.yaml") as f:
-        return str((yaml.safe_load(f) or {}).get("name") or Path(run_dir).resolve().name)
+    return str(_run_config(run_dir).get("name") or Path(run_dir).resolve().name)
 
 
 def policy_sources(args, seed_indices: list[int]) -> list[tuple[str, int]]:
