@@ -395,11 +395,6 @@ def _run_config(run_dir: str | os.PathLike) -> dict:
         return yaml.safe_load(f) or {}
 
 
-def _same_agent(run_a: str, run_b: str) -> bool:
-    """Whether two run directories' configs have the same `agent` section (hence the same networks)."""
-    return run_a == run_b or _run_config(run_a).get("agent") == _run_config(run_b).get("agent")
-
-
 def check_run_dir(run_dir: str | os.PathLike) -> Path:
     """Cheap checks of a run directory before load_policy: exists, is a directory, has config.yaml."""
     from docrl_jax.policy import RunDirError
@@ -554,10 +549,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
     import jax
-    sources = policy_sources(args, cfg["seed_indices"]) if args.run is not None else [(None, None)]
-    # One run: its own seed indices. Several: the evaluated seeds are numbered 0, 1, ... in order.
-    seed_indices = ([s for _, s in sources] if args.run is not None and len(args.run) == 1
-                    else list(range(len(sources))) if args.run is not None else [None])
+    if args.run is None:
+        sources, seed_indices = [(None, None)], [None]
+    else:   # one run: its own seed indices; several: the evaluated seeds numbered 0, 1, ... in order
+        sources = policy_sources(args, cfg["seed_indices"])
+        seed_indices = [s for _, s in sources] if len(args.run) == 1 else list(range(len(sources)))
+    # Each run's agent settings: runs with the same ones share their networks (and compiled rollout).
+    agents = {run: json.dumps(_run_config(run).get("agent"), sort_keys=True) for run in args.run or []}
     rows, trial_rows = [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
             "run": args.run, "which": args.which if args.run else None, "policy": args.policy,
@@ -569,6 +567,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "bba_depth_phase": args.bba_depth_phase if args.policy else None,
             "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()]}
     policies: dict = {}
+    first_with_nets: dict = {}   # agent settings -> the first policy loaded with them
     t_start = time.time()
 
     def report(row, trials, env, start, goal):
@@ -598,11 +597,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                     policy, method = load_policy_for(args, env.params, run_seed, run)
                 except RunDirError as e:
                     parser.error(str(e))
-                same_nets = [p for p, r in zip(policies.values(), sources) if _same_agent(r[0], run)]
-                if same_nets:
-                    # Seeds with the same agent settings share their networks: keep the first one's
-                    # functions so the compiled rollout (cached per act function) serves every seed.
-                    policy = replace(same_nets[0][0], params=policy.params, source=policy.source)
+                # Seeds with the same agent settings share their networks: keep the first one's
+                # functions so the compiled rollout (cached per act function) serves every seed.
+                nets = agents.get(run)
+                if nets in first_with_nets:
+                    policy = replace(first_with_nets[nets], params=policy.params, source=policy.source)
+                else:
+                    first_with_nets[nets] = policy
                 policies[seed_index] = (policy, method)
                 if policy.source:
                     meta["policy_sources"][str(seed_index)] = policy.source
