@@ -42,8 +42,8 @@ from jax.sharding import NamedSharding, PartitionSpec
 from docrl_jax import best_policy, checkpoint, sharding
 from docrl_jax.config import Config, ConfigError, load_config, to_yaml
 from docrl_jax.policy import RunDirError
-from docrl_jax.run_dir import (CONFIG_FILE, FAILURE_COLUMNS, METRIC_COLUMNS, METRICS_FILE, TB_DIR, accumulate,
-                                append_rows, empty_pending, eval_rows, read_config, truncate_metrics)
+from docrl_jax.run_dir import (CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, TB_DIR, accumulate, append_rows,
+                                empty_pending, eval_rows, read_config, truncate_metrics)
 from docrl_jax.train import make_trainer
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -427,9 +427,8 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         rows = eval_rows(config, seeds, steps, wall(), pending, ev, trained, placement.get(state.agent.updates))
         if primary:
             append_rows(metrics_path, rows)
-        for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):
-            if k in ev:
-                writer.add_scalar(f"eval/{k}", float(np.mean(ev[k])), steps)
+        for k, v in ev.items():  # every metric the evaluation returns, mean over seeds
+            writer.add_scalar(f"eval/{k}", float(np.mean(v)), steps)
         pending = empty_pending(len(seeds))
         return rows
 

@@ -42,6 +42,8 @@ METRIC_COLUMNS = ["env_steps", "wall_time_s", "seed", "success_rate", "episode_r
                   "train_episodes", "critic_loss", "actor_loss", "alpha", "q", "policy_freq", "grad_updates",
                   "trained_actor_success_rate", "trained_actor_success_air_to_water",
                   "trained_actor_success_water_to_air", *FAILURE_COLUMNS]
+# The evaluation results also recorded for the trained (not averaged) actor (train.eval_trained_actor).
+TRAINED_ACTOR_KEYS = ("success_rate", "success_air_to_water", "success_water_to_air")
 
 
 def read_config(run_dir: str | Path) -> Config:
@@ -131,7 +133,7 @@ def eval_rows(config: Config, seeds: list[int], steps: int, wall_s: float, pendi
                "q": p["q"] / learn if learn else math.nan,
                "policy_freq": p["policy_freq"] / learn if learn else math.nan,
                "grad_updates": int(updates[i])}
-        for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
+        for k in TRAINED_ACTOR_KEYS:
             row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
         for k in ("success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):  # train.eval_paper_pairs
             row[k] = float(ev[k][i]) if k in ev else math.nan

@@ -53,8 +53,8 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, hparams_neutral
 from docrl_jax.config import Config, ConfigError, check_replay_memory, field_docs, load_config, parse_overrides, \
     to_yaml, validate
 from docrl_jax.policy import RunDirError
-from docrl_jax.run_dir import (CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, accumulate, append_rows, empty_pending,
-                               eval_rows)
+from docrl_jax.run_dir import (CONFIG_FILE, METRIC_COLUMNS, METRICS_FILE, TRAINED_ACTOR_KEYS, accumulate,
+                               append_rows, empty_pending, eval_rows)
 
 SWEEP_FILE, TABLE_CSV, TABLE_MD = "sweep.json", "sweep.csv", "sweep.md"
 TRACED_KEYS = tuple(f"agent.{k}" for k in HPARAM_KEYS)
@@ -264,7 +264,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console) -> dict[str, li
                         placement.get(state.agent.updates))
         for row, (c, _), wants in zip(out, rows, trained_actor):
             if not wants:
-                for k in ("success_rate", "success_air_to_water", "success_water_to_air"):
+                for k in TRAINED_ACTOR_KEYS:
                     row[f"trained_actor_{k}"] = math.nan
             row.update({"combination": c.name, **{k: json.dumps(v) if isinstance(v, list) else v
                                                   for k, v in c.values.items()}})

@@ -19,13 +19,13 @@ import jax.numpy as jnp
 
 import docrl_jax.envs as envs
 from docrl_jax.config import Config, env_kwargs
-from docrl_jax.protocol import NOMINAL_YAW, trial_starts
+from docrl_jax.protocol import DIRECTIONS, NOMINAL_YAW, trial_starts
 
 
 def pair_starts(how: str, key: jax.Array, start, direction: str, n: int) -> tuple[jax.Array, jax.Array]:
     """Start positions (n, 3) and yaws (n,) of the paper-pair episodes of one direction.
 
-    'paper': the evaluator's trials (`evaluate.trial_starts`: nominal yaw of the direction +-0.1 rad,
+    'paper': the evaluator's trials (`protocol.trial_starts`: nominal yaw of the direction +-0.1 rad,
     position +-0.1 m), so the training-time score estimates the paper protocol's. 'random_yaw': the
     exact start, facing a uniformly random yaw (harder: the vehicle must first turn towards its goal)."""
     if how == "paper":
@@ -67,7 +67,7 @@ def make_evaluate(config: Config, act, init_carry, memory: bool):
         groups = [jax.vmap(env.reset)(jax.random.split(k_rand, n))]
         names = ["success_rate"]
         if config.train.eval_paper_pairs:
-            for direction, k in zip(("air_to_water", "water_to_air"), jax.random.split(k_pairs)):
+            for direction, k in zip(DIRECTIONS, jax.random.split(k_pairs)):
                 start, goal = envs.eval_pair(config.env.scenario, direction)
                 k_start, k_reset = jax.random.split(k)
                 positions, yaws = pair_starts(config.train.eval_pair_starts, k_start, start, direction, n)
