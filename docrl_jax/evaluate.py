@@ -331,10 +331,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="a trainer run directory (config.yaml + checkpoints); several run directories of one "
                           "config (separate launches, e.g. one per seed) are evaluated as the seeds of one method")
     src.add_argument("--policy", metavar="NAME", help=f"a built-in policy: {', '.join(POLICIES)}")
-    p.add_argument("--seed-index", default="0",
-                   help="seed(s) of --run to evaluate, comma-separated, e.g. 0,1,2 (default 0); several seeds "
-                        "also give a table of mean and spread over seeds. With several run directories each "
-                        "gives these seeds, numbered 0, 1, ... in the order given (results.json maps them back)")
+    p.add_argument("--seed-index", default="all",
+                   help="seed(s) of --run to evaluate, comma-separated, e.g. 0 or 0,1,2; default 'all': every seed "
+                        "the run trained (train.num_seeds in its config.yaml). Several seeds also give a table of "
+                        "mean and spread over seeds. With several run directories each gives these seeds, "
+                        "numbered 0, 1, ... in the order given (results.json maps them back)")
     p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
                    help="with --run: the final policy of the latest checkpoint (default; what tables report) "
                         "or each seed's best evaluated policy kept beside it (train.track_best_policy)")
@@ -376,6 +377,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
            "env": parse_env_overrides(args.env), "seed_indices": parse_seed_indices(args.seed_index)}
     for run in args.run or []:
         check_run_dir(run)
+        if cfg["seed_indices"] is None:
+            run_num_seeds(run)   # a readable train.num_seeds, checked before any compile
     if args.run and len(args.run) > 1 and args.label is None:
         names = {config_name(run) for run in args.run}
         if len(names) != 1:
@@ -442,13 +445,16 @@ def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = S
     return results
 
 
-def parse_seed_indices(text: str) -> list[int]:
+def parse_seed_indices(text: str) -> list[int] | None:
+    """The --seed-index list; None for 'all' (every seed of each run, see policy_sources)."""
+    if str(text).strip().lower() == "all":
+        return None
     try:
         vals = [int(t) for t in str(text).split(",") if t.strip() != ""]
     except ValueError:
-        raise UsageError(f"--seed-index {text!r}: expected integers >= 0, comma-separated (e.g. 0 or 0,1,2)") from None
+        raise UsageError(f"--seed-index {text!r}: expected 'all' or integers >= 0, comma-separated (e.g. 0 or 0,1,2)") from None
     if not vals or any(v < 0 for v in vals):
-        raise UsageError(f"--seed-index {text!r}: expected integers >= 0, comma-separated (e.g. 0 or 0,1,2)")
+        raise UsageError(f"--seed-index {text!r}: expected 'all' or integers >= 0, comma-separated (e.g. 0 or 0,1,2)")
     return list(dict.fromkeys(vals))
 
 
@@ -457,9 +463,21 @@ def config_name(run_dir: str | os.PathLike) -> str:
     return str(_run_config(run_dir).get("name") or Path(run_dir).resolve().name)
 
 
-def policy_sources(args, seed_indices: list[int]) -> list[tuple[str, int]]:
-    """(run dir, seed index within it) for each evaluated seed of --run, in the order given."""
-    return [(run, s) for run in args.run for s in seed_indices]
+def run_num_seeds(run_dir: str | os.PathLike) -> int:
+    """How many seeds a run directory trained (vmapped in one process): train.num_seeds of its config.yaml."""
+    train = _run_config(run_dir).get("train") or {}
+    try:
+        return max(1, int(train.get("num_seeds", 1)))
+    except (TypeError, ValueError):
+        raise UsageError(f"{run_dir}: config.yaml has train.num_seeds={train.get('num_seeds')!r}, "
+                         "not a positive integer; pass --seed-index explicitly") from None
+
+
+def policy_sources(args, seed_indices: list[int] | None) -> list[tuple[str, int]]:
+    """(run dir, seed index within it) for each evaluated seed of --run, in the order given;
+    seed_indices None = every seed each run trained."""
+    return [(run, s) for run in args.run
+            for s in (seed_indices if seed_indices is not None else range(run_num_seeds(run)))]
 
 
 def load_policy_for(args, env_params, seed_index: int, run: str | None = None) -> tuple[Any, str]:

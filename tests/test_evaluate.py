@@ -316,7 +316,7 @@ def test_cli_run_bad_seed_index(fake_trainer, tmp_path, capsys):
     assert e.value.code == 2 and "no seed index 7" in capsys.readouterr().err
     with pytest.raises(SystemExit) as e:
         evaluate.main(["--run", str(fake_trainer), "--seed-index", "-1", "--out", str(tmp_path)])
-    assert e.value.code == 2 and "expected integers >= 0" in capsys.readouterr().err
+    assert e.value.code == 2 and "expected 'all' or integers >= 0" in capsys.readouterr().err
 
 
 def test_figure3_and_plotting_cli(tmp_path, oracle_trials, dive_trials):
@@ -453,3 +453,19 @@ def test_cli_several_runs_are_the_seeds_of_one_method(monkeypatch, tmp_path, cap
     with pytest.raises(SystemExit) as e:
         evaluate.main(["--run", *runs, *common, "--out", str(out)])
     assert e.value.code == 2 and "different configs (sac_lstm, td3_lstm)" in capsys.readouterr().err
+
+
+def test_cli_run_defaults_to_every_trained_seed(fake_trainer, tmp_path, capsys):
+    """Without --seed-index a run of 2 vmapped seeds is evaluated as 2 seeds (not silently seed 0 only)."""
+    (fake_trainer / "config.yaml").write_text("algo: oracle\ntrain:\n  num_seeds: 2\n")
+    out = tmp_path / "out"
+    assert evaluate.main(["--run", str(fake_trainer), "--trials", str(N), "--scenarios", "1", "--directions", "a-w",
+                          "--max-steps", str(MAX_STEPS), "--figures", "0",
+                          "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]", "--out", str(out)]) == 0
+    js = json.loads((out / "results.json").read_text())
+    assert [r["seed_index"] for r in js["results"]] == [0, 1]
+    assert js["meta"]["policy_sources"] == {"0": "final policy of seed index 0", "1": "final policy of seed index 1"}
+    (fake_trainer / "config.yaml").write_text("algo: oracle\ntrain:\n  num_seeds: many\n")
+    with pytest.raises(SystemExit) as e:
+        evaluate.main(["--run", str(fake_trainer), "--out", str(tmp_path / "bad")])
+    assert e.value.code == 2 and "num_seeds='many'" in capsys.readouterr().err
