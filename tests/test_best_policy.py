@@ -53,10 +53,28 @@ def _rows(run_dir):
         return list(csv.DictReader(fh))
 
 
-# Seed 1 of the easy run, evaluated and checkpointed every chunk: its best evaluation (12,000 env steps on
-# CPU with the pinned versions) is not its last, so these tests tell tracking apart from keeping the
-# latest policy; the first test asserts that this still holds.
-EVERY_CHUNK = dict(train__seed=1, train__eval_every=4000, train__checkpoint_every=4000, train__keep_checkpoints=5)
+# The easy run evaluated and checkpointed every chunk. Tracking can only be told apart from keeping the
+# latest policy when a seed's best evaluation is not its last, and which evaluation is best depends on
+# floating-point details of the CPU (CI once saw seed 1's best move to the last chunk). So the first seed
+# of a few whose best is earlier is used; each further run reuses the compiled programs (seconds).
+EVERY_CHUNK = dict(train__eval_every=4000, train__checkpoint_every=4000, train__keep_checkpoints=5)
+CANDIDATE_SEEDS = (1, 2, 3, 4, 5, 6)
+
+
+def _best_row(rows):
+    rates = [float(r["success_rate"]) for r in rows]
+    pick = max(range(len(rows)), key=lambda i: (rates[i], i))  # the best, ties to the later
+    return int(rows[pick]["env_steps"]), rates
+
+
+def _tracking_seed() -> int:
+    seen = {}
+    for seed in CANDIDATE_SEEDS:
+        step, rates = _best_row(_rows(finished_run(train__seed=seed, **EVERY_CHUNK)))
+        if 0 < step < 16000:
+            return seed
+        seen[seed] = rates
+    pytest.fail(f"every candidate seed's best evaluation is its first or last; nothing tells tracking apart: {seen}")
 
 
 def _assert_same(a, b):
@@ -64,12 +82,8 @@ def _assert_same(a, b):
 
 
 def test_the_run_keeps_the_policy_of_its_best_evaluation():
-    d = finished_run(**EVERY_CHUNK)
-    rows = _rows(d)
-    rates = [float(r["success_rate"]) for r in rows]
-    pick = max(range(len(rows)), key=lambda i: (rates[i], i))  # the best, ties to the later
-    step = int(rows[pick]["env_steps"])
-    assert 0 < step < 16000, f"the best evaluation is {step}: this seed no longer tests tracking ({rates})"
+    d = finished_run(train__seed=_tracking_seed(), **EVERY_CHUNK)
+    step, _ = _best_row(_rows(d))
     best, final = load_policy(d, which="best"), load_policy(d)
     assert f"env step {step:,}" in best.source and "checkpoint 16000" in best.source
     assert final.source == "final policy of seed index 0: checkpoint 16000"
@@ -82,10 +96,11 @@ def test_the_run_keeps_the_policy_of_its_best_evaluation():
 def test_a_resumed_run_keeps_the_same_best_and_old_checkpoints_have_none():
     from _trainer_common import easy_config
     from docrl_jax import cli
-    d, config = tmp_dir("resume_best"), easy_config(**EVERY_CHUNK)
+    seed = _tracking_seed()
+    d, config = tmp_dir("resume_best"), easy_config(train__seed=seed, **EVERY_CHUNK)
     assert cli.run(config, d, show_progress=False, stop_after_chunks=3) == cli.EXIT_INTERRUPTED
     assert cli.run(config, d, resume=True, show_progress=False) == cli.EXIT_OK  # the best comes from the checkpoint
-    a, b = load_policy(d, which="best"), load_policy(finished_run(**EVERY_CHUNK), which="best")
+    a, b = load_policy(d, which="best"), load_policy(finished_run(train__seed=seed, **EVERY_CHUNK), which="best")
     assert a.source == b.source
     _assert_same(a.params, b.params)
     from pathlib import Path
