@@ -67,12 +67,14 @@ def _best_row(rows):
     return int(rows[pick]["env_steps"]), rates
 
 
-def _tracking_seed() -> int:
+def _tracking_run():
+    """(seed, run directory, env step of its best evaluation) of the first candidate whose best is not its last."""
     seen = {}
     for seed in CANDIDATE_SEEDS:
-        step, rates = _best_row(_rows(finished_run(train__seed=seed, **EVERY_CHUNK)))
+        run_dir = finished_run(train__seed=seed, **EVERY_CHUNK)
+        step, rates = _best_row(_rows(run_dir))
         if 0 < step < 16000:
-            return seed
+            return seed, run_dir, step
         seen[seed] = rates
     pytest.fail(f"every candidate seed's best evaluation is its first or last; nothing tells tracking apart: {seen}")
 
@@ -82,8 +84,7 @@ def _assert_same(a, b):
 
 
 def test_the_run_keeps_the_policy_of_its_best_evaluation():
-    d = finished_run(train__seed=_tracking_seed(), **EVERY_CHUNK)
-    step, _ = _best_row(_rows(d))
+    _, d, step = _tracking_run()
     best, final = load_policy(d, which="best"), load_policy(d)
     assert f"env step {step:,}" in best.source and "checkpoint 16000" in best.source
     assert final.source == "final policy of seed index 0: checkpoint 16000"
@@ -96,11 +97,11 @@ def test_the_run_keeps_the_policy_of_its_best_evaluation():
 def test_a_resumed_run_keeps_the_same_best_and_old_checkpoints_have_none():
     from _trainer_common import easy_config
     from docrl_jax import cli
-    seed = _tracking_seed()
+    seed, finished, _ = _tracking_run()
     d, config = tmp_dir("resume_best"), easy_config(train__seed=seed, **EVERY_CHUNK)
     assert cli.run(config, d, show_progress=False, stop_after_chunks=3) == cli.EXIT_INTERRUPTED
     assert cli.run(config, d, resume=True, show_progress=False) == cli.EXIT_OK  # the best comes from the checkpoint
-    a, b = load_policy(d, which="best"), load_policy(finished_run(train__seed=seed, **EVERY_CHUNK), which="best")
+    a, b = load_policy(d, which="best"), load_policy(finished, which="best")
     assert a.source == b.source
     _assert_same(a.params, b.params)
     from pathlib import Path
