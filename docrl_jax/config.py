@@ -99,6 +99,12 @@ class AgentConfig:
                                         "0.001 averages over ~1,000 actor updates, which damps the swings of "
                                         "the trained actor between evaluations.")
 
+    @property
+    def recurrent(self) -> bool:
+        """True when the actor carries state from step to step (an LSTM with memory): the one rule
+        for stored carries, burn-in and carry resets at episode starts."""
+        return self.actor == "lstm" and self.memory
+
 
 @dataclass(frozen=True)
 class ReplayConfig:
@@ -412,8 +418,7 @@ def validate(c: Config) -> Config:
         _bad("replay.burn_in", r.burn_in, f"must be < replay.seq_len={r.seq_len} (at least one trained step)")
     if a.actor == "lstm" and len(a.actor_hidden) != 1:
         _bad("agent.actor_hidden", list(a.actor_hidden), "an lstm actor takes one entry, the LSTM units, e.g. [32]")
-    recurrent = a.actor == "lstm" and a.memory
-    if not recurrent and r.burn_in != 0:
+    if not a.recurrent and r.burn_in != 0:
         why = "an mlp actor" if a.actor == "mlp" else "agent.memory false (the memoryless LSTM)"
         _bad("replay.burn_in", r.burn_in, f"{why} has no carry to warm up: set burn_in 0 (seq_len > 1 only "
                                           f"serves agent.n_step)")

@@ -136,3 +136,10 @@ def test_replay_larger_than_memory_is_rejected_with_its_size(monkeypatch):
     load_config("td3_lstm", check_memory=False)
     big = load_config("td3_lstm", ["replay.buffer_size=100000000", "train.num_seeds=8"], check_memory=False)
     assert cfg.replay_bytes(big) > 100 * 2**30
+
+
+def test_recurrent_is_an_lstm_actor_with_memory():
+    assert load_config("td3_lstm").agent.recurrent
+    assert not load_config("td3_lstm", ["agent.memory=false", "replay.burn_in=0"]).agent.recurrent
+    assert not load_config("sac_mlp").agent.recurrent
+    assert not cfg.AgentConfig(actor="mlp", memory=True).recurrent

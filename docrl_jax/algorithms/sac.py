@@ -61,7 +61,7 @@ def alpha_loss(log_alpha, logp, target_entropy, mask):
 
 
 def make_sac(config: Config) -> Agent:
-    a_cfg, memory = config.agent, config.agent.memory and config.agent.actor == "lstm"
+    a_cfg, memory = config.agent, config.agent.recurrent
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=True)
     critic = Critic(hidden=a_cfg.critic_hidden, num=2, layer_norm=a_cfg.critic_layer_norm)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)

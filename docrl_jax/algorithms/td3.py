@@ -54,7 +54,7 @@ def actor_loss(actor_params, actor, critic, critic_params, seq: SeqBatch, memory
 
 
 def make_td3(config: Config) -> Agent:
-    a_cfg, memory = config.agent, config.agent.memory and config.agent.actor == "lstm"
+    a_cfg, memory = config.agent, config.agent.recurrent
     ddpg = a_cfg.algo == "ddpg"
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=False)
     critic = Critic(hidden=a_cfg.critic_hidden, num=1 if ddpg else 2, layer_norm=a_cfg.critic_layer_norm)
