@@ -125,7 +125,7 @@ def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = T
     def step(c, xs):
         obs, reset = xs
         if memory:
-            c = jax.tree.map(lambda z, v: jnp.where(_expand(reset, v), z, v), zero, c)
+            c = jax.tree.map(lambda z, v: jnp.where(expand_flag(reset, v), z, v), zero, c)
         else:
             c = zero
         new_c, out = actor.apply(params, c, obs)
@@ -137,5 +137,7 @@ def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = T
     return carries_in, outs, final, after
 
 
-def _expand(flag, like):
+def expand_flag(flag, like):
+    """Reshapes a per-row flag of shape (B,) (or any leading shape) to broadcast against `like` of shape
+    (B, ...): trailing axes of size 1 are appended, e.g. a reset flag (B,) against a carry (B, units)."""
     return flag.reshape(flag.shape + (1,) * (like.ndim - flag.ndim))

@@ -14,7 +14,7 @@ from docrl_jax.algorithms import make_agent, policy_freq
 from docrl_jax.algorithms import sac, td3
 from docrl_jax.algorithms.common import run_actor, split_batch
 from docrl_jax.config import config_from_dict
-from docrl_jax.networks import Critic
+from docrl_jax.networks import Critic, expand_flag
 
 B = 6
 
@@ -204,3 +204,11 @@ def test_learning_rate_zero_freezes_the_networks(algo):
     for name in ("actor", "critic", "actor_target", "critic_target", "log_alpha"):
         jax.tree.map(lambda x, y: np.testing.assert_array_equal(np.asarray(x), np.asarray(y)),
                      getattr(state, name), getattr(new, name))
+
+
+def test_expand_flag_broadcasts_a_row_flag_over_trailing_axes():
+    flag = jnp.array([True, False])
+    assert expand_flag(flag, jnp.zeros((2, 3, 4))).shape == (2, 1, 1)
+    assert expand_flag(flag, jnp.zeros((2,))).shape == (2,)
+    picked = jnp.where(expand_flag(flag, jnp.ones((2, 3))), 0.0, jnp.ones((2, 3)))
+    np.testing.assert_array_equal(picked, [[0, 0, 0], [1, 1, 1]])
