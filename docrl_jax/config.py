@@ -144,6 +144,9 @@ class TrainConfig:
                                 f"{AUTO_ITERS_PER_CHUNK['cpu']} on a CPU.")
     eval_every: int = _f(100_000, "Env steps between deterministic evaluations (at the first chunk boundary "
                                   "at or after each multiple, and at step 0 and at the end).")
+    eval_every_minutes: float = _f(10.0, "Also evaluate when this many wall-clock minutes have passed since the "
+                                         "last evaluation, so a slow device (a CPU) still writes learning curves; "
+                                         "on a GPU the env-step cadence eval_every comes first.")
     eval_episodes: int = _f(64, "Evaluation episodes per seed, run in parallel, each until arrival, "
                                 "termination or the step limit, on the training distribution of starts/goals.")
     eval_paper_pairs: bool = _f(False, "Also evaluate the paper's air-to-water and water-to-air pairs "
@@ -164,6 +167,9 @@ class TrainConfig:
                                        "load_policy(which='best') and evaluate --which best read it "
                                        "(docrl_jax/best_policy.py). Tables report the final policy.")
     checkpoint_every: int = _f(200_000, "Env steps between Orbax checkpoints (plus one at the end and on Ctrl-C).")
+    checkpoint_every_minutes: float = _f(10.0, "Also checkpoint when this many wall-clock minutes have passed since "
+                                               "the last checkpoint, so a crash loses at most that much, whatever "
+                                               "the device's speed.")
     keep_checkpoints: int = _f(3, "Most recent checkpoints kept on disk.")
 
 
@@ -268,9 +274,11 @@ def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = Non
         out["env"]["num_envs"] = AUTO_NUM_ENVS[kind]
         if notes is not None:
             notes.append(f"env.num_envs auto -> {AUTO_NUM_ENVS[kind]:,} ({backend})")
-    num_envs = out.get("env", {}).get("num_envs", EnvConfig.num_envs)
-    if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs > 0):
-        return out  # a bad num_envs is reported by validation; the per-env sizes stay 'auto' (also refused)
+    # The per-env sizes are multiples of num_envs, so a bad num_envs is reported here, by its own name,
+    # rather than as an unresolvable 'auto' below.
+    num_envs = _coerce("env.num_envs", out.get("env", {}).get("num_envs", EnvConfig.num_envs), int, None)
+    if num_envs < 1:
+        _bad("env.num_envs", num_envs, "must be >= 1")
     for sec, key, per_env, why in _AUTO_PER_ENV:
         if is_auto(sec, key):
             out[sec][key] = num_envs * per_env[kind]
@@ -427,12 +435,27 @@ def validate(c: Config) -> Config:
         _bad("replay.buffer_size", r.buffer_size,
              f"gives {capacity} steps per env (buffer_size // num_envs with num_envs={e.num_envs}); "
              f"needs at least seq_len + 1 = {r.seq_len + 1}, i.e. buffer_size >= {(r.seq_len + 1) * e.num_envs}")
+    distinct = max_batch_size(c)
+    if r.batch_size > distinct:
+        _bad("replay.batch_size", r.batch_size,
+             f"exceeds the {distinct:,} distinct sequences a full buffer holds (env.num_envs={e.num_envs} x "
+             f"(replay.buffer_size={r.buffer_size} // num_envs - replay.seq_len={r.seq_len} + 1)); the largest "
+             f"valid batch is {distinct}: lower replay.batch_size or raise replay.buffer_size")
+    if t.start_steps >= t.total_env_steps:
+        _bad("train.start_steps", t.start_steps,
+             f"must be < train.total_env_steps={t.total_env_steps}: the first start_steps env steps act "
+             f"randomly and make no gradient update, so this run would train nothing; lower train.start_steps "
+             f"or raise train.total_env_steps")
     for key, value in [("agent.actor_lr", a.actor_lr), ("agent.critic_lr", a.critic_lr), ("agent.alpha_lr", a.alpha_lr),
                        ("agent.policy_noise", a.policy_noise), ("agent.noise_clip", a.noise_clip),
                        ("agent.ou_theta", a.ou_theta), ("agent.ou_sigma", a.ou_sigma),
                        ("agent.ou_sigma_final", a.ou_sigma_final)]:
         if value < 0:
             _bad(key, value, "must be >= 0 (0 disables it; a learning rate of 0 freezes learning)")
+    for key, value in [("train.eval_every_minutes", t.eval_every_minutes),
+                       ("train.checkpoint_every_minutes", t.checkpoint_every_minutes)]:
+        if value <= 0:
+            _bad(key, value, "must be > 0 (minutes of wall-clock time)")
     if not 0.0 < a.lr_end_scale <= 1.0:
         _bad("agent.lr_end_scale", a.lr_end_scale, "must be in (0, 1] (1 = constant learning rates)")
     if a.n_step > r.seq_len - r.burn_in:
@@ -454,6 +477,12 @@ def validate(c: Config) -> Config:
         if a.policy_freq != 1:
             _bad("agent.policy_freq", a.policy_freq, "ddpg updates the actor every step; set 1 or use algo td3")
     return c
+
+
+def max_batch_size(c: Config) -> int:
+    """The distinct sequences a full replay buffer holds, the largest sensible replay.batch_size: each
+    of the num_envs rows keeps buffer_size // num_envs steps, i.e. that minus seq_len + 1 windows."""
+    return c.env.num_envs * (c.replay.buffer_size // c.env.num_envs - c.replay.seq_len + 1)
 
 
 def _env_kwargs_for_params(e: EnvConfig) -> dict[str, Any]:
