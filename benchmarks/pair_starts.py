@@ -29,7 +29,8 @@ def main(argv=None) -> int:
 
     import jax
 
-    from docrl_jax import envs, evaluate, protocol
+    from docrl_jax import envs, evaluate
+    from docrl_jax.evaluate import protocol
     from docrl_jax.train import load_policy
     env = evaluate.make_eval_env(args.scenario, 500)
     meta, rows = run_meta(), []

@@ -15,7 +15,7 @@ wrappers, episode_length 500) with the env settings of our config --env-from (de
 same training start distribution, `goal_clearance` 0.6, as the trainer it is compared with). At each of Brax's evaluation points the worker takes the policy's
 current parameters (PPO: `policy_params_fn`; SAC, which has no such callback in brax 0.14.2: the
 checkpoint Brax writes to `checkpoint_logdir` just before calling `progress_fn`) and runs OUR
-evaluation (docrl_jax/evaluate.py `evaluate_policy`): the paper's air_to_water and water_to_air pairs
+evaluation (docrl_jax/evaluate/rollout.py `evaluate_policy`): the paper's air_to_water and water_to_air pairs
 of scenario 2, 100 trials each, deterministic policy (Brax's `deterministic=True`: the Gaussian's
 mode), wind and 0.01 m range noise, at most 500 steps, the paper's reward. The clock stops at the first
 evaluation with both directions >= --target (90 %): `time_to_target_s` counts everything up to the

@@ -6,7 +6,8 @@ import json
 
 import pytest
 
-from docrl_jax import compare, evaluate
+from docrl_jax import evaluate
+from docrl_jax.evaluate import compare
 
 
 def _row(method, seed, scenario, direction, successes, t_air=10.0, t_water=5.0):

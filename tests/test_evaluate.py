@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 import docrl_jax.envs as envs
-from docrl_jax import evaluate, paper_results, plotting
+from docrl_jax import evaluate, runs
+from docrl_jax.evaluate import cli, curves, paper_results, plotting, rollout
 from docrl_jax.baselines.scripted import straight_line
-from docrl_jax.policy import RunDirError
+from docrl_jax.errors import RunDirError
 
 MAX_STEPS = 200
 LOW_FLOOR = (-3.0, 4.8)  # z bounds below the floor (top -1.3), so a dive ends on the floor
@@ -95,7 +96,7 @@ def test_metrics_on_synthetic_records():
            "out_of_bounds": np.array([False, False]), "terminated": np.array([False, False]),
            "final_distance": np.array([3.0, 0.1])}
     out["positions"][1, 3:] = out["positions"][1, 2]
-    m = evaluate._trial_metrics(out, 0.2, np.zeros((2, 3)), np.zeros(2))
+    m = evaluate.trial_metrics(out, 0.2, np.zeros((2, 3)), np.zeros(2))
     assert list(m["outcome"]) == [evaluate.OUTCOMES.index("timeout"), evaluate.OUTCOMES.index("success")]
     np.testing.assert_allclose(m["t_air"], [0.4, 0.0])
     np.testing.assert_allclose(m["t_water"], [0.4, 0.4])
@@ -168,11 +169,11 @@ def test_learning_curves(tmp_path):
     a, b = tmp_path / "docrl_d" / "metrics.csv", tmp_path / "docrl_s" / "metrics.csv"
     _write_metrics(a, [0, 1, 2])
     _write_metrics(b, [0, 1], offset=0.2)
-    (out,) = plotting.plot_learning_curves([a, b], tmp_path / "figs")
+    (out,) = curves.plot_learning_curves([a, b], tmp_path / "figs")
     assert out.exists() and out.stat().st_size > 10_000
-    seeds = plotting.read_metrics(a)
+    seeds = curves.read_metrics(a)
     assert sorted(seeds) == [0, 1, 2]
-    grid, mean, std, n = plotting.aggregate_curves([(s["env_steps"], s["episode_return"]) for s in seeds.values()])
+    grid, mean, std, n = curves.aggregate_curves([(s["env_steps"], s["episode_return"]) for s in seeds.values()])
     assert n == 3 and grid[0] == pytest.approx(14) and grid[-1] == pytest.approx(19000)
     assert np.all(std >= 0) and mean[-1] == pytest.approx(np.mean([190 + s for s in range(3)]), abs=0.5)
 
@@ -190,8 +191,8 @@ def test_learning_curves_paper_pair_rows(tmp_path):
                     "success_air_to_water", "success_water_to_air"])
         for i in range(20):
             w.writerow([i * 1000, i * 2.0, 0, i / 20, 10 * i, i / 20, 1 - i / 20])
-    (a,) = plotting.plot_learning_curves([plain], tmp_path / "a")
-    (b,) = plotting.plot_learning_curves([pairs], tmp_path / "b")
+    (a,) = curves.plot_learning_curves([plain], tmp_path / "a")
+    (b,) = curves.plot_learning_curves([pairs], tmp_path / "b")
     assert mpimg.imread(b).shape[0] == pytest.approx(2 * mpimg.imread(a).shape[0], rel=0.02)
 
 
@@ -199,31 +200,31 @@ def test_learning_curves_missing_column(tmp_path):
     p = tmp_path / "metrics.csv"
     p.write_text("env_steps,seed\n1,0\n")
     with pytest.raises(ValueError, match="success_rate"):
-        plotting.read_metrics(p)
+        curves.read_metrics(p)
 
 
 # ------------------------------------------------------------------ run dirs and the CLI
 
 def test_check_run_dir(tmp_path):
     with pytest.raises(RunDirError, match="does not exist"):
-        evaluate.check_run_dir(tmp_path / "nope")
+        cli.check_run_dir(tmp_path / "nope")
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "metrics.csv").write_text("x\n")
     with pytest.raises(RunDirError, match="no config.yaml"):
-        evaluate.check_run_dir(tmp_path / "run")
+        cli.check_run_dir(tmp_path / "run")
     (tmp_path / "file").write_text("")
     with pytest.raises(RunDirError, match="not a directory"):
-        evaluate.check_run_dir(tmp_path / "file")
+        cli.check_run_dir(tmp_path / "file")
     (tmp_path / "run" / "config.yaml").write_text("a: 1\n")
-    assert evaluate.check_run_dir(tmp_path / "run") == tmp_path / "run"
+    assert cli.check_run_dir(tmp_path / "run") == tmp_path / "run"
 
 
 @pytest.fixture
 def no_compile(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("compiled before the arguments were checked")
-    monkeypatch.setattr(evaluate, "make_rollout", boom)
-    monkeypatch.setattr(evaluate, "make_eval_env", boom)
+    monkeypatch.setattr(rollout, "make_rollout", boom)
+    monkeypatch.setattr(rollout, "make_eval_env", boom)
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -243,7 +244,7 @@ def no_compile(monkeypatch):
 ])
 def test_cli_errors(argv, message, capsys, no_compile, tmp_path):
     with pytest.raises(SystemExit) as e:
-        evaluate.main([*argv, "--out", str(tmp_path / "o")])
+        cli.main([*argv, "--out", str(tmp_path / "o")])
     assert e.value.code == 2
     assert message in capsys.readouterr().err
 
@@ -253,19 +254,19 @@ def test_cli_run_dir_without_config(tmp_path, capsys, no_compile):
     run.mkdir()
     (run / "metrics.csv").write_text("env_steps\n")
     with pytest.raises(SystemExit) as e:
-        evaluate.main(["--run", str(run), "--out", str(tmp_path / "o")])
+        cli.main(["--run", str(run), "--out", str(tmp_path / "o")])
     assert e.value.code == 2 and "no config.yaml" in capsys.readouterr().err
 
 
 def test_cli_run_and_policy_are_exclusive(capsys, no_compile):
     with pytest.raises(SystemExit):
-        evaluate.main(["--run", "x", "--policy", "bba"])
+        cli.main(["--run", "x", "--policy", "bba"])
     assert "not allowed with" in capsys.readouterr().err
 
 
 def test_cli_curves_only(tmp_path, no_compile):
     _write_metrics(tmp_path / "runA" / "metrics.csv", [0, 1])
-    assert evaluate.main(["--curves", str(tmp_path / "runA"), "--out", str(tmp_path / "o")]) == 0
+    assert cli.main(["--curves", str(tmp_path / "runA"), "--out", str(tmp_path / "o")]) == 0
     assert (tmp_path / "o" / "learning_curves.png").exists()
 
 
@@ -273,19 +274,15 @@ def test_cli_curves_only(tmp_path, no_compile):
 
 @pytest.fixture
 def fake_trainer(monkeypatch, tmp_path):
-    """A stand-in `docrl_jax.train` whose load_policy returns the scripted oracle for seeds 0-1."""
-    import sys
-    import types
-    mod = types.ModuleType("docrl_jax.train")
+    """A stand-in `docrl_jax.runs.load_policy` that returns the scripted oracle for seeds 0-1."""
     oracle = straight_line()
 
     def load_policy(run_dir, seed_index=0, which="final"):
-        evaluate.check_run_dir(run_dir)
+        cli.check_run_dir(run_dir)
         if seed_index > 1:
             raise RunDirError(f"run directory {run_dir!r} has seeds 0, 1; no seed index {seed_index}")
         return dataclasses.replace(oracle, source=f"{which} policy of seed index {seed_index}")
-    mod.load_policy = load_policy
-    monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
+    monkeypatch.setattr(runs, "load_policy", load_policy)
     run = tmp_path / "oracle_run"
     run.mkdir()
     (run / "config.yaml").write_text("algo: oracle\n")
@@ -294,7 +291,7 @@ def fake_trainer(monkeypatch, tmp_path):
 
 def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
     out = tmp_path / "out"
-    assert evaluate.main(["--run", str(fake_trainer), "--which", "best", "--seed-index", "0,1", "--trials", str(N),
+    assert cli.main(["--run", str(fake_trainer), "--which", "best", "--seed-index", "0,1", "--trials", str(N),
                           "--scenarios", "1",
                           "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "2",
                           "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]",  # the module's env and N: no new compile
@@ -312,10 +309,10 @@ def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
 
 def test_cli_run_bad_seed_index(fake_trainer, tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
-        evaluate.main(["--run", str(fake_trainer), "--seed-index", "7", "--scenarios", "1", "--out", str(tmp_path)])
+        cli.main(["--run", str(fake_trainer), "--seed-index", "7", "--scenarios", "1", "--out", str(tmp_path)])
     assert e.value.code == 2 and "no seed index 7" in capsys.readouterr().err
     with pytest.raises(SystemExit) as e:
-        evaluate.main(["--run", str(fake_trainer), "--seed-index", "-1", "--out", str(tmp_path)])
+        cli.main(["--run", str(fake_trainer), "--seed-index", "-1", "--out", str(tmp_path)])
     assert e.value.code == 2 and "expected 'all' or integers >= 0" in capsys.readouterr().err
 
 
@@ -350,7 +347,7 @@ def test_aggregate_seeds_pools_exactly():
     samples = [rng.normal(10, 2, 7), rng.normal(14, 1, 3), np.array([])]   # seed 2: no successes
     rows = []
     for k, x in enumerate(samples):
-        mean, std = evaluate._mean_std(x)
+        mean, std = evaluate.mean_std(x)
         rows.append({"method": "m", "seed_index": k, "scenario": 2, "direction": "water_to_air", "trials": 10,
                      "successes": x.size, "success_rate": x.size / 10, "collisions": 10 - x.size,
                      "out_of_bounds": 0, "timeouts": 0, **{f"{n}_{s}": v for n in ("t_air", "t_water", "time",
@@ -377,37 +374,22 @@ def test_evaluate_policy_is_deterministic_per_seed(env):
     assert row_a["successes"] == N and row_a["scenario"] == 1 and row_a["direction"] == "air_to_water"
 
 
-def test_cli_run_without_trainer_is_a_clear_error(tmp_path, capsys, monkeypatch):
-    import sys
-    monkeypatch.setitem(sys.modules, "docrl_jax.train", None)   # import of docrl_jax.train raises ImportError
-    run = tmp_path / "run"
-    run.mkdir()
-    (run / "config.yaml").write_text("a: 1\n")
-    with pytest.raises(SystemExit) as e:
-        evaluate.main(["--run", str(run), "--scenarios", "1", "--out", str(tmp_path / "o")])
-    assert e.value.code == 2 and "needs the trainer module docrl_jax.train" in capsys.readouterr().err
-
-
 def test_cli_run_seeds_share_one_compile(monkeypatch, tmp_path):
     """Each seed's own parameters are used, through one compiled rollout (the seeds of a run share
     their networks): seed 1's parameters make the scripted policy dive, seed 0's fly straight."""
-    import sys
-    import types
     import jax.numpy as jnp
     from docrl_jax.policy import Policy
     base = straight_line()
-    mod = types.ModuleType("docrl_jax.train")
 
     def load_policy(run_dir, seed_index=0, which="final"):  # fresh closures on every call, as the real loader makes
         return Policy(name="p", params={"dive": jnp.asarray(seed_index == 1)},
                       init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a))
-    mod.load_policy = load_policy
-    monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
+    monkeypatch.setattr(runs, "load_policy", load_policy)
     run = tmp_path / "two_seeds"
     run.mkdir()
     (run / "config.yaml").write_text("algo: scripted\n")
     out = tmp_path / "out"
-    assert evaluate.main(["--run", str(run), "--seed-index", "0,1", "--trials", str(N), "--scenarios", "1",
+    assert cli.main(["--run", str(run), "--seed-index", "0,1", "--trials", str(N), "--scenarios", "1",
                           "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "0",
                           "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]", "--out", str(out)]) == 0
     rows = json.loads((out / "results.json").read_text())["results"]
@@ -419,18 +401,14 @@ def test_cli_several_runs_are_the_seeds_of_one_method(monkeypatch, tmp_path, cap
     """Separate launches of one config (one run dir per seed, as time_to_success makes them) are
     evaluated as one method: seeds numbered in the order given, each run's own parameters (run B's
     make the scripted policy dive), one compiled rollout, the mapping back to the runs in results.json."""
-    import sys
-    import types
     import jax.numpy as jnp
     from docrl_jax.policy import Policy
     base = straight_line()
-    mod = types.ModuleType("docrl_jax.train")
 
     def load_policy(run_dir, seed_index=0, which="final"):
         return Policy(name="p", params={"dive": jnp.asarray(str(run_dir).endswith("B"))},
                       init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a), source=f"{run_dir}")
-    mod.load_policy = load_policy
-    monkeypatch.setitem(sys.modules, "docrl_jax.train", mod)
+    monkeypatch.setattr(runs, "load_policy", load_policy)
     runs = []
     for name in ("A", "B"):
         run = tmp_path / f"td3_lstm_seed{name}"
@@ -440,7 +418,7 @@ def test_cli_several_runs_are_the_seeds_of_one_method(monkeypatch, tmp_path, cap
     out = tmp_path / "out"
     common = ["--trials", str(N), "--scenarios", "1", "--directions", "a-w", "--max-steps", str(MAX_STEPS),
               "--figures", "0", "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]"]
-    assert evaluate.main(["--run", *runs, *common, "--out", str(out)]) == 0
+    assert cli.main(["--run", *runs, *common, "--out", str(out)]) == 0
     js = json.loads((out / "results.json").read_text())
     rows = js["results"]
     assert [(r["method"], r["seed_index"], r["successes"], r["collisions"]) for r in rows] == [
@@ -451,7 +429,7 @@ def test_cli_several_runs_are_the_seeds_of_one_method(monkeypatch, tmp_path, cap
     # runs of different configs need a --label
     (tmp_path / "td3_lstm_seedB" / "config.yaml").write_text("name: sac_lstm\nagent: {algo: sac}\n")
     with pytest.raises(SystemExit) as e:
-        evaluate.main(["--run", *runs, *common, "--out", str(out)])
+        cli.main(["--run", *runs, *common, "--out", str(out)])
     assert e.value.code == 2 and "different configs (sac_lstm, td3_lstm)" in capsys.readouterr().err
 
 
@@ -459,7 +437,7 @@ def test_cli_run_defaults_to_every_trained_seed(fake_trainer, tmp_path, capsys):
     """Without --seed-index a run of 2 vmapped seeds is evaluated as 2 seeds (not silently seed 0 only)."""
     (fake_trainer / "config.yaml").write_text("algo: oracle\ntrain:\n  num_seeds: 2\n")
     out = tmp_path / "out"
-    assert evaluate.main(["--run", str(fake_trainer), "--trials", str(N), "--scenarios", "1", "--directions", "a-w",
+    assert cli.main(["--run", str(fake_trainer), "--trials", str(N), "--scenarios", "1", "--directions", "a-w",
                           "--max-steps", str(MAX_STEPS), "--figures", "0",
                           "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]", "--out", str(out)]) == 0
     js = json.loads((out / "results.json").read_text())
@@ -467,5 +445,5 @@ def test_cli_run_defaults_to_every_trained_seed(fake_trainer, tmp_path, capsys):
     assert js["meta"]["policy_sources"] == {"0": "final policy of seed index 0", "1": "final policy of seed index 1"}
     (fake_trainer / "config.yaml").write_text("algo: oracle\ntrain:\n  num_seeds: many\n")
     with pytest.raises(SystemExit) as e:
-        evaluate.main(["--run", str(fake_trainer), "--out", str(tmp_path / "bad")])
+        cli.main(["--run", str(fake_trainer), "--out", str(tmp_path / "bad")])
     assert e.value.code == 2 and "num_seeds='many'" in capsys.readouterr().err

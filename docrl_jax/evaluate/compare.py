@@ -18,8 +18,9 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from docrl_jax import paper_results
-from docrl_jax.evaluate import DIRECTIONS, SHORT, _pm, aggregate_seeds
+from docrl_jax.evaluate import paper_results
+from docrl_jax.evaluate.protocol import DIRECTIONS
+from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, plus_minus
 
 
 def load_eval(path: str | Path) -> list[dict]:
@@ -74,11 +75,11 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
     for a in (a for a in aggs if a["scenario"] == scen):
         try:
             p = paper_results.lookup(a["method"], a["direction"])
-            paper = f"{p['success']} | {_pm(*p['t_air'])} | {_pm(*p['t_water'])}"
+            paper = f"{p['success']} | {plus_minus(*p['t_air'])} | {plus_minus(*p['t_water'])}"
         except KeyError:
             paper = "– | – | –"
-        out.append(f"| {SHORT[a['direction']]} {a['method']} | {_success(a)} | {_pm(a['t_air_mean'], a['t_air_std'])} "
-                   f"| {_pm(a['t_water_mean'], a['t_water_std'])} | {a['collisions_mean']:.1f} | "
+        out.append(f"| {SHORT[a['direction']]} {a['method']} | {_success(a)} | {plus_minus(a['t_air_mean'], a['t_air_std'])} "
+                   f"| {plus_minus(a['t_water_mean'], a['t_water_std'])} | {a['collisions_mean']:.1f} | "
                    f"{a['timeouts_mean']:.1f} | {paper} |")
     scenarios = sorted({a["scenario"] for a in aggs})
     out += ["", "### Every scenario (ours)\n",

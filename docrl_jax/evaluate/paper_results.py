@@ -1,5 +1,5 @@
 """The DoCRL paper's published Table I ("Mean and standard deviation metrics over 100 navigation
-trials for all approaches"), transcribed from shared/paper/docrl-paper.tex.
+trials for all approaches"), transcribed from the paper.
 
 Times are seconds (mean, std) over the successful trials; success is out of 100 trials.
 

@@ -1,7 +1,8 @@
-"""Figures: trajectories in the tank (the paper's Figure 3) and learning curves (Matplotlib, Agg, PNG).
+"""Figures of trials: trajectories in the tank and the paper's Figure 3 (Matplotlib, Agg, PNG), and
+the figure command `python -m docrl_jax.plotting figure3|curves` (learning curves: `curves.py`).
 
     plot_trajectories(env.mj_model, positions, steps, outcome, start, goal, "traj.png")
-    plot_learning_curves(["runs/a/metrics.csv", "runs/b/metrics.csv"], "out_dir")
+    python -m docrl_jax.plotting figure3 results/docrl_d results/bba --scenario 2 --out fig3.png
 
 The tank, floor, obstacles and water surface are read from the scene's MuJoCo model (geoms of group
 1 are solids: boxes and capsules; the group-2 plane named water_surface is the surface), so the
@@ -10,9 +11,6 @@ figures always show the geometry the simulator used.
 
 from __future__ import annotations
 
-import csv
-import math
-from collections import defaultdict
 from pathlib import Path
 from typing import Sequence
 
@@ -281,6 +279,7 @@ def plot_figure3(eval_dirs: Sequence, scenario: int, path, max_trajectories: int
 
 def main(argv: Sequence[str] | None = None) -> int:
     import argparse
+    from docrl_jax.evaluate import curves
     p = argparse.ArgumentParser(prog="python -m docrl_jax.plotting", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     f3 = sub.add_parser("figure3", help="Figure 3 from evaluation output dirs (one row per method)")
@@ -289,135 +288,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     f3.add_argument("--trajectories", type=int, default=3)
     f3.add_argument("--seed-index", type=int, default=None)
     f3.add_argument("--out", default="figure3.png")
-    cv = sub.add_parser("curves", help="learning curves from run dirs or metrics.csv files")
-    cv.add_argument("runs", nargs="+")
-    cv.add_argument("--labels", help="comma-separated labels, one per run (same label = pooled seeds)")
-    cv.add_argument("--out", default=".")
+    curves.add_command(sub)
     args = p.parse_args(argv)
     try:
         if args.cmd == "figure3":
             print(plot_figure3(args.eval_dirs, args.scenario, args.out, args.trajectories, args.seed_index))
         else:
-            labels = args.labels.split(",") if args.labels else None
-            print(*plot_learning_curves([find_metrics_csv(r) for r in args.runs], args.out, labels))
-    except (ValueError, FileNotFoundError) as e:
+            curves.run_command(args)
+    except (ValueError, FileNotFoundError) as e:   # RunDirError is a ValueError
         p.error(str(e))
     return 0
-
-
-# ------------------------------------------------------------------------------------ learning curves
-
-CURVE_METRICS = ("success_rate", "episode_return")
-# The trainer's evaluation of the paper's start/goal pairs (`train.eval_paper_pairs`): drawn as extra
-# rows when a metrics.csv has them, since they track what Table I measures.
-PAPER_PAIR_METRICS = ("success_air_to_water", "success_water_to_air")
-METRIC_LABELS = {"success_rate": "eval success (random goals)", "episode_return": "eval return (random goals)",
-                 "success_air_to_water": "success, paper A-W pair", "success_water_to_air": "success, paper W-A pair"}
-CURVE_X = (("env_steps", "environment steps"), ("wall_time_s", "wall-clock (s)"))
-REQUIRED_COLUMNS = ("env_steps", "wall_time_s", "seed", "success_rate", "episode_return")
-
-
-def read_metrics(path) -> dict[int, dict[str, np.ndarray]]:
-    """metrics.csv -> {seed: {column: array}} (rows sorted by env_steps; non-numeric cells -> NaN)."""
-    path = Path(path)
-    with open(path, newline="") as f:
-        reader = csv.DictReader(f)
-        cols = reader.fieldnames or []
-        missing = [c for c in REQUIRED_COLUMNS if c not in cols]
-        if missing:
-            raise ValueError(f"{path}: metrics.csv lacks column(s) {missing}; needs {list(REQUIRED_COLUMNS)}")
-        rows = list(reader)
-
-    def num(x):
-        try:
-            return float(x)
-        except (TypeError, ValueError):
-            return math.nan
-    by_seed: dict[int, list] = defaultdict(list)
-    for r in rows:
-        s = num(r["seed"])
-        by_seed[int(s) if math.isfinite(s) else 0].append(r)
-    out = {}
-    for seed, rs in by_seed.items():
-        cols_arr = {c: np.array([num(r[c]) for r in rs]) for c in cols}
-        order = np.argsort(cols_arr["env_steps"], kind="stable")
-        out[seed] = {c: v[order] for c, v in cols_arr.items()}
-    return out
-
-
-def aggregate_curves(series: Sequence[tuple[np.ndarray, np.ndarray]], num: int = 200):
-    """Mean and std over seeds of curves y(x) given at different x: interpolated on a common grid
-    spanning the x range all seeds cover. Returns (grid, mean, std, n_seeds)."""
-    clean = []
-    for x, y in series:
-        ok = np.isfinite(x) & np.isfinite(y)
-        if ok.sum() >= 1:
-            clean.append((x[ok], y[ok]))
-    if not clean:
-        return np.array([]), np.array([]), np.array([]), 0
-    lo = max(x.min() for x, _ in clean)
-    hi = min(x.max() for x, _ in clean)
-    if hi <= lo:  # a single point or disjoint ranges: no common span, show the union
-        lo, hi = min(x.min() for x, _ in clean), max(x.max() for x, _ in clean)
-    grid = np.linspace(lo, hi, num) if hi > lo else np.array([lo])
-    ys = np.stack([np.interp(grid, x, y) for x, y in clean])
-    return grid, ys.mean(0), ys.std(0), len(clean)
-
-
-def find_metrics_csv(path) -> Path:
-    """A run directory's metrics.csv, or the file itself; RunDirError names what is missing."""
-    from docrl_jax.policy import RunDirError
-    p = Path(path)
-    if p.is_file():
-        return p
-    if (p / "metrics.csv").is_file():
-        return p / "metrics.csv"
-    raise RunDirError(f"{str(p)!r}: no metrics.csv there (give a run directory or a metrics.csv file)")
-
-
-def plot_learning_curves(csv_paths: Sequence, out_dir, labels: Sequence[str] | None = None,
-                         filename: str = "learning_curves.png") -> list[Path]:
-    """Success rate and return against env steps and wall-clock, mean +- std over seeds.
-
-    Each metrics.csv may hold several seeds (its `seed` column); files with the same label (default:
-    the name of the file's directory) are pooled, so one curve per method. Writes one PNG with one
-    row per metric (plus the paper-pair success rows when any file has them) and two columns."""
-    csv_paths = [Path(p) for p in csv_paths]
-    if not csv_paths:
-        raise ValueError("plot_learning_curves: no metrics.csv given")
-    if labels is None:
-        labels = [p.parent.name or str(p) for p in csv_paths]
-    if len(labels) != len(csv_paths):
-        raise ValueError(f"{len(labels)} labels for {len(csv_paths)} metrics files")
-    groups: dict[str, list] = defaultdict(list)
-    for p, lab in zip(csv_paths, labels):
-        groups[lab].extend(read_metrics(p).values())
-    metrics = list(CURVE_METRICS) + [
-        m for m in PAPER_PAIR_METRICS
-        if any(m in s and np.isfinite(s[m]).any() for seeds in groups.values() for s in seeds)]
-    fig, axes = plt.subplots(len(metrics), 2, figsize=(11, 3.75 * len(metrics)), squeeze=False)
-    for col, (xname, xlabel) in enumerate(CURVE_X):
-        for row, metric in enumerate(metrics):
-            ax = axes[row, col]
-            for i, (lab, seeds) in enumerate(groups.items()):
-                grid, mean, std, n = aggregate_curves([(s[xname], s[metric]) for s in seeds if metric in s])
-                if n == 0:
-                    continue
-                c = f"C{i}"
-                ax.plot(grid, mean, color=c, label=f"{lab} (n={n} seed{'s' if n != 1 else ''})")
-                ax.fill_between(grid, mean - std, mean + std, color=c, alpha=0.2)
-            ax.set(xlabel=xlabel, ylabel=METRIC_LABELS.get(metric, metric.replace("_", " ")))
-            ax.grid(alpha=0.3)
-            if metric.startswith("success"):
-                ax.set_ylim(-0.03, 1.03)
-    axes[0, 0].legend(fontsize=8)
-    fig.suptitle("Learning curves: mean ± std over seeds")
-    fig.tight_layout()
-    out = Path(out_dir) / filename
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return [out]
 
 
 if __name__ == "__main__":

@@ -1,0 +1,174 @@
+"""The evaluator's rollout: N trials of one policy from one (scenario, direction) pair as ONE
+`jit(vmap(lax.scan))`, and the per-trial metrics computed from its records.
+
+This rollout is separate from the trainer's in-training evaluation because it records every step
+(position, medium, action, reward) over the full `max_steps` horizon, which t_air/t_water, the path
+length and the trajectory figures need. The trainer's is a `while_loop` that stops once every episode
+has ended and returns outcomes only, which is all a training-time score needs and much cheaper.
+
+A trial ends at arrival (3-D distance < the env's `arrival_distance`), at a collision or leaving the
+vertical bounds (the env's `terminated`), or after `max_steps` control steps. The vehicle state
+freezes once a trial is done, so per-step records past the end repeat the final pose.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Sequence
+
+import numpy as np
+
+from docrl_jax.evaluate.protocol import (DEFAULT_EVAL_ENV, DIRECTIONS, NOMINAL_YAW, SCENARIOS, TrialSpec,
+                                         trial_starts)
+from docrl_jax.evaluate.tables import summarize
+
+_ENVS: dict = {}
+
+
+def make_eval_env(scenario: int, max_steps: int = 500, **overrides):
+    """The environment of the evaluation: episodes end at arrival; `max_steps` steps at most.
+
+    Cached per settings, so repeated evaluations in one process reuse the env and its compiled rollouts."""
+    import docrl_jax.envs as envs
+    kw = dict(DEFAULT_EVAL_ENV)
+    kw.update({k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()})
+    kw["terminate_on_arrival"] = True
+    kw["max_episode_steps"] = int(max_steps)
+    key = (int(scenario), tuple(sorted(kw.items())))
+    if key not in _ENVS:
+        _ENVS[key] = envs.make(scenario=scenario, **kw)
+    return _ENVS[key]
+
+
+_ROLLOUTS: dict = {}
+
+
+def _cache_key(env, policy, max_steps: int) -> tuple:
+    return id(env), id(policy.act), id(policy.init_carry), int(max_steps)
+
+
+def make_rollout(env, policy, max_steps: int):
+    """jit(vmap(scan)) over trials: (params, keys (N,2), positions (N,3), yaws (N,), goal (3,)) -> records.
+
+    Cached per (env, policy.act, max_steps), so calling again with other params or trials reuses the
+    compiled function (a new N retraces once).
+    """
+    cache_key = _cache_key(env, policy, max_steps)
+    if cache_key in _ROLLOUTS:
+        return _ROLLOUTS[cache_key][0]
+    import jax
+    import jax.numpy as jnp
+
+    def one_trial(params, key, position, yaw, goal):
+        k_reset, k_policy = jax.random.split(key)
+        state0 = env.reset_to(k_reset, position, yaw, goal)
+        carry0 = policy.init_carry()
+
+        def body(c, k):
+            state, pcarry, done = c
+            new_pcarry, action = policy.act(params, pcarry, state.obs, state.info, k)
+            new_state = env.step(state, action)
+            keep = lambda new, old: jnp.where(done, old, new)
+            next_state = jax.tree.map(keep, new_state, state)
+            next_pcarry = jax.tree.map(keep, new_pcarry, pcarry)
+            rec = {"position": next_state.info["position"], "underwater_before": state.info["underwater"],
+                   "taken": ~done, "action": jnp.where(done, 0.0, jnp.asarray(action, jnp.float32)),
+                   "reward": jnp.where(done, 0.0, new_state.reward)}
+            return (next_state, next_pcarry, done | new_state.done), rec
+
+        keys = jax.random.split(k_policy, max_steps)
+        (final, _, _), rec = jax.lax.scan(body, (state0, carry0, jnp.zeros((), bool)), keys)
+        info = final.info
+        return {
+            "positions": jnp.concatenate([state0.info["position"][None], rec["position"]], 0),
+            "underwater_before": rec["underwater_before"], "taken": rec["taken"], "actions": rec["action"],
+            "rewards": rec["reward"],
+            "arrived": info["arrived"], "collision": info["collision"], "out_of_bounds": info["out_of_bounds"],
+            "terminated": info["terminated"], "final_distance": info["distance"],
+        }
+
+    fn = jax.jit(jax.vmap(one_trial, in_axes=(None, 0, 0, 0, None)))
+    _ROLLOUTS[cache_key] = (fn, env, policy)  # keep env/policy alive so the ids stay unique
+    return fn
+
+
+def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 500,
+               yaw: float = 0.0, spec: TrialSpec = TrialSpec()) -> dict[str, np.ndarray]:
+    """Runs `num_trials` trials of `policy` from (jittered) `start` to `goal` as one vmapped rollout.
+
+    Returns numpy arrays, leading axis = trial: positions (N, T+1, 3) (frozen after the end),
+    steps (N,), outcome (N,) index into OUTCOMES, t_air/t_water/time (N,) simulated seconds,
+    path_length (N,), success/collision/out_of_bounds/timeout/diverged (N,) bool, final_distance,
+    episode_return, start_positions (N, 3), start_yaws (N,), and the raw per-step records.
+    """
+    import jax
+    if not getattr(env.params, "terminate_on_arrival", False):
+        raise ValueError("run_trials needs an env with terminate_on_arrival=True (use make_eval_env)")
+    if num_trials <= 0:
+        raise ValueError(f"num_trials={num_trials}: must be a positive integer")
+    if max_steps <= 0:
+        raise ValueError(f"max_steps={max_steps}: must be a positive integer")
+    k_start, k_trials = jax.random.split(key)
+    positions, yaws = trial_starts(k_start, start, num_trials, yaw, spec)
+    keys = jax.random.split(k_trials, num_trials)
+    fn = make_rollout(env, policy, max_steps)
+    out = jax.device_get(fn(policy.params, keys, positions, yaws, jax.numpy.asarray(goal, jax.numpy.float32)))
+    out = {k: np.asarray(v) for k, v in out.items()}
+    return trial_metrics(out, env.control_dt, np.asarray(positions), np.asarray(yaws))
+
+
+def trial_metrics(out: dict[str, np.ndarray], dt: float, start_positions, start_yaws) -> dict[str, np.ndarray]:
+    """Per-trial metrics from the rollout's records (`run_trials` documents them).
+
+    A control step counts as air or water by the vehicle's medium at the start of the step, so
+    t_air + t_water is exactly the trial time (steps * dt); the path length sums the per-step
+    displacements of the steps taken."""
+    taken = out["taken"].astype(bool)                       # (N, T)
+    water = out["underwater_before"].astype(bool)
+    steps = taken.sum(1)
+    success = out["arrived"].astype(bool)
+    collision = out["collision"].astype(bool) & ~success
+    oob = out["out_of_bounds"].astype(bool) & ~success & ~collision
+    diverged = out["terminated"].astype(bool) & ~success & ~collision & ~oob
+    timeout = ~success & ~out["terminated"].astype(bool)
+    outcome = np.select([success, collision, oob, timeout, diverged], [0, 1, 2, 3, 4], 4)
+    disp = np.linalg.norm(np.diff(out["positions"], axis=1), axis=-1)   # (N, T), zero after the end
+    res = dict(out)
+    res.update(
+        steps=steps, time=steps * dt, t_air=(taken & ~water).sum(1) * dt, t_water=(taken & water).sum(1) * dt,
+        path_length=(disp * taken).sum(1), success=success, collision=collision, out_of_bounds=oob,
+        timeout=timeout, diverged=diverged, outcome=outcome, episode_return=out["rewards"].sum(1),
+        start_positions=start_positions, start_yaws=start_yaws)
+    return res
+
+
+def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = SCENARIOS,
+                    directions: Sequence[str] = DIRECTIONS, num_trials: int = 100, max_steps: int = 500,
+                    seed: int = 0, env_overrides: dict | None = None, seed_index: int | None = None,
+                    on_result=None) -> list[tuple[dict, dict]]:
+    """The whole protocol for one policy: for each scenario and direction, `num_trials` trials.
+
+    Returns [(row, trials)]: `row` = `summarize` plus method, seed_index, scenario, direction and the
+    seconds taken (`compile_s` when this call compiled the rollout, else `run_s`); `trials` = the
+    `run_trials` arrays. The trial seeds depend only on (seed, scenario, direction), so every method
+    and seed index meets the same wind, noise and start jitter. `on_result(row, trials, env, start,
+    goal)` is called after each (scenario, direction)."""
+    import jax
+    import docrl_jax.envs as envs
+    base = jax.random.PRNGKey(seed)
+    results = []
+    for scenario in scenarios:
+        env = make_eval_env(scenario, max_steps, **(env_overrides or {}))
+        for direction in directions:
+            start, goal = envs.eval_pair(scenario, direction)
+            key = jax.random.fold_in(jax.random.fold_in(base, scenario), DIRECTIONS.index(direction))
+            fresh = _cache_key(env, policy, max_steps) not in _ROLLOUTS
+            t0 = time.time()
+            trials = run_trials(env, policy, start, goal, key, num_trials, max_steps, NOMINAL_YAW[direction])
+            elapsed = round(time.time() - t0, 2)
+            row = {"method": method, "seed_index": seed_index, "scenario": scenario, "direction": direction,
+                   **summarize(trials), "compile_s": elapsed if fresh else None, "run_s": None if fresh else elapsed}
+            if on_result is not None:
+                on_result(row, trials, env, start, goal)
+            results.append((row, trials))
+    return results

@@ -1,0 +1,48 @@
+"""Public names that moved when the package was reorganised: importing an old module name fails
+with a message naming the new one, instead of a bare ModuleNotFoundError.
+
+`MOVED_MODULES` is the one list; `docrl_jax/__init__.py` installs the finder that reads it. A command
+kept at its old short name (`python -m docrl_jax.sweep`) is a real module that calls `command`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.abc
+import sys
+
+# old module -> where its contents live now
+MOVED_MODULES = {
+    "docrl_jax.protocol": "docrl_jax.evaluate.protocol",
+    "docrl_jax.paper_results": "docrl_jax.evaluate.paper_results",
+}
+
+
+class MovedModuleError(ModuleNotFoundError):
+    """An import of a module that moved; the message names the new module."""
+
+
+class _MovedFinder(importlib.abc.MetaPathFinder):
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname in MOVED_MODULES:
+            raise MovedModuleError(f"{fullname} moved: import {MOVED_MODULES[fullname]} instead",
+                                   name=fullname)
+        return None
+
+
+def install() -> None:
+    if not any(isinstance(f, _MovedFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _MovedFinder())
+
+
+def command(module_name: str, target: str) -> None:
+    """Body of a command module kept at a short name: run `target.main()` under `python -m`, and
+    make attribute look-ups on the short module name the module where the code lives."""
+    module = sys.modules[module_name]
+    if module_name == "__main__":
+        raise SystemExit(importlib.import_module(target).main())
+
+    def __getattr__(name):
+        raise AttributeError(f"{module_name}.{name}: {module_name} is only the command; "
+                             f"import {name} from {target}")
+    module.__getattr__ = __getattr__
