@@ -237,9 +237,11 @@ def parse_overrides(items: list[str] | None) -> dict[str, Any]:
 
 
 def load_config(name_or_path: str | os.PathLike, overrides: list[str] | dict[str, Any] | None = None,
-                check_memory: bool = True, backend: str | None = None, notes: list | None = None) -> Config:
+                backend: str | None = None, notes: list | None = None) -> Config:
     """Reads a YAML config, applies `--set` overrides, resolves `auto` sizes for the backend,
-    validates; raises ConfigError. `notes` (a list) receives one line per `auto` value resolved."""
+    validates; raises ConfigError. `notes` (a list) receives one line per `auto` value resolved.
+    Whether the run fits its devices is `docrl_jax.memory.check_memory(config)`, a separate step
+    because it needs the devices."""
     path = resolve_config_path(name_or_path)
     try:
         raw = yaml.safe_load(path.read_text()) or {}
@@ -247,8 +249,7 @@ def load_config(name_or_path: str | os.PathLike, overrides: list[str] | dict[str
         raise ConfigError(f"{path}: not valid YAML ({e})") from None
     if isinstance(overrides, list):
         overrides = parse_overrides(overrides)
-    return config_from_dict(raw, overrides or {}, check_memory=check_memory, source=str(path), backend=backend,
-                            notes=notes)
+    return config_from_dict(raw, overrides or {}, source=str(path), backend=backend, notes=notes)
 
 
 # The `auto` sizes that scale with env.num_envs: (section, key, value per env by backend, the note's
@@ -287,8 +288,7 @@ def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = Non
     return out
 
 
-def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, check_memory: bool = False,
-                     source: str = "config", backend: str | None = None, notes: list | None = None) -> Config:
+def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, source: str = "config", backend: str | None = None, notes: list | None = None) -> Config:
     """Builds and validates a Config from a YAML-like dict. `auto` sizes resolve for `backend`
     (default: JAX's default backend); a line per resolved value is appended to `notes`."""
     if not isinstance(raw, dict):
@@ -318,8 +318,6 @@ def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, check_m
         built[sec] = _build_section(sec, cls, values)
     config = Config(name=name, **built)
     validate(config)
-    if check_memory:
-        check_replay_memory(config)
     return config
 
 
@@ -435,12 +433,7 @@ def validate(c: Config) -> Config:
         _bad("replay.buffer_size", r.buffer_size,
              f"gives {capacity} steps per env (buffer_size // num_envs with num_envs={e.num_envs}); "
              f"needs at least seq_len + 1 = {r.seq_len + 1}, i.e. buffer_size >= {(r.seq_len + 1) * e.num_envs}")
-    distinct = max_batch_size(c)
-    if r.batch_size > distinct:
-        _bad("replay.batch_size", r.batch_size,
-             f"exceeds the {distinct:,} distinct sequences a full buffer holds (env.num_envs={e.num_envs} x "
-             f"(replay.buffer_size={r.buffer_size} // num_envs - replay.seq_len={r.seq_len} + 1)); the largest "
-             f"valid batch is {distinct}: lower replay.batch_size or raise replay.buffer_size")
+    check_batch_size(c)
     if t.start_steps >= t.total_env_steps:
         _bad("train.start_steps", t.start_steps,
              f"must be < train.total_env_steps={t.total_env_steps}: the first start_steps env steps act "
@@ -485,6 +478,18 @@ def max_batch_size(c: Config) -> int:
     return c.env.num_envs * (c.replay.buffer_size // c.env.num_envs - c.replay.seq_len + 1)
 
 
+def check_batch_size(c: Config) -> None:
+    """A batch of more sequences than the buffer holds distinct ones only repeats them (and costs the
+    memory of the repeats): ConfigError naming the largest valid batch. Pure: needs no device."""
+    e, r = c.env, c.replay
+    distinct = max_batch_size(c)
+    if r.batch_size > distinct:
+        _bad("replay.batch_size", r.batch_size,
+             f"exceeds the {distinct:,} distinct sequences a full buffer holds (env.num_envs={e.num_envs} x "
+             f"(replay.buffer_size={r.buffer_size} // num_envs - replay.seq_len={r.seq_len} + 1)); the largest "
+             f"valid batch is {distinct}: lower replay.batch_size or raise replay.buffer_size")
+
+
 def _env_kwargs_for_params(e: EnvConfig) -> dict[str, Any]:
     return {k: (list(v) if isinstance(v, tuple) else v) for k, v in e.overrides}
 
@@ -492,61 +497,6 @@ def _env_kwargs_for_params(e: EnvConfig) -> dict[str, Any]:
 def env_kwargs(c: Config) -> dict[str, Any]:
     """Keyword overrides for `docrl_jax.envs.make(scenario, **kwargs)`."""
     return _env_kwargs_for_params(c.env)
-
-
-# ---------------------------------------------------------------------------------------- memory
-def carry_size(c: Config) -> int:
-    """Floats in one actor carry: (c, h) of the LSTM, or a 1-float placeholder for an MLP actor."""
-    return 2 * c.agent.actor_hidden[0] if c.agent.actor == "lstm" else 1
-
-
-def replay_bytes(c: Config) -> int:
-    """Bytes of the replay buffers of all seeds: per step obs, next obs, action, reward and carry in
-    float32, plus three bool flags (terminated, truncated, episode start)."""
-    from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
-    per_step = 4 * (2 * OBS_SIZE + ACTION_SIZE + 1 + carry_size(c)) + 3
-    capacity = c.replay.buffer_size // c.env.num_envs
-    return c.train.num_seeds * c.env.num_envs * capacity * per_step
-
-
-def available_device_bytes() -> tuple[int | None, str]:
-    """Free memory of the default device: GPU/TPU from `memory_stats()`, CPU from MemAvailable."""
-    import jax
-    dev = jax.local_devices()[0]  # this process's (in a multi-process run jax.devices()[0] may not be)
-    if dev.platform != "cpu":
-        stats = dev.memory_stats() or {}
-        if "bytes_limit" in stats:
-            return int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0)), f"{dev.device_kind} memory"
-        return None, str(dev)
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024, "available host RAM"
-    except OSError:
-        pass
-    return None, "host RAM"
-
-
-def check_replay_memory(c: Config) -> None:
-    """The replay buffers of the seeds one device holds (train.devices splits them; host-platform
-    devices share this process's RAM) must fit its free memory. Also resolves train.devices, so an
-    impossible device count is refused here (ConfigError)."""
-    import jax
-    from docrl_jax.sharding import seed_devices
-    devices, _ = seed_devices(c.train)
-    sharing = len(devices) // jax.process_count() if devices[0].platform == "cpu" else 1
-    seeds = c.train.num_seeds // len(devices) * sharing
-    need = replay_bytes(c) // c.train.num_seeds * seeds
-    free, what = available_device_bytes()
-    if free is not None and need > free:
-        held = f"num_seeds={c.train.num_seeds}" if seeds == c.train.num_seeds else \
-            f"{seeds} of num_seeds={c.train.num_seeds} over {len(devices)} devices"
-        raise ConfigError(
-            f"replay buffers need {need / 2**30:.2f} GiB ({held} x buffer_size="
-            f"{c.replay.buffer_size} steps x {need // max(1, seeds * c.replay.buffer_size)} bytes), "
-            f"more than the {free / 2**30:.2f} GiB of {what}; lower replay.buffer_size or train.num_seeds, "
-            f"or split the seeds over more devices (train.devices)")
 
 
 # ---------------------------------------------------------------------------------------- output

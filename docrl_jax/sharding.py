@@ -39,7 +39,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from docrl_jax.errors import ConfigError
 
-if TYPE_CHECKING:  # annotations only: config imports this module to check device memory
+if TYPE_CHECKING:  # annotations only: this module needs no config at run time
     from docrl_jax.config import TrainConfig
 
 SEED_AXIS = "seed"
