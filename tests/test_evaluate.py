@@ -237,6 +237,9 @@ def no_compile(monkeypatch):
     (["--policy", "bba", "--directions", "up"], "valid directions are air_to_water"),
     (["--policy", "bba", "--env", "windy=1"], "unknown env parameter; valid names:"),
     (["--policy", "bba", "--env", "wind"], "expected KEY=VALUE"),
+    (["--policy", "bba", "--env", "hull_volume=abc"], "--env hull_volume=abc: must be a finite number"),
+    (["--policy", "bba", "--env", "water_current=(0.1,0)"], "--env water_current=(0.1,0): must be a sequence of 3"),
+    (["--policy", "bba", "--env", "sensor_noise_std=-1e-3"], "--env sensor_noise_std=-1e-3: must be >= 0"),
     (["--policy", "bba", "--bba-depth-phase", "never"], "valid choices are after, first"),
     ([], "nothing to do"),
     (["--run", "/nonexistent/run_dir"], "does not exist"),
@@ -247,6 +250,44 @@ def test_cli_errors(argv, message, capsys, no_compile, tmp_path):
         cli.main([*argv, "--out", str(tmp_path / "o")])
     assert e.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_env_overrides_take_what_a_user_types():
+    """YAML 1.1 reads 4e-5 as a string and (0.1,0,0) as text: --env takes both as numbers."""
+    assert cli.parse_env_overrides(["hull_volume=4e-5", "sensor_noise_std=1e3", "water_current=(0.1,0,0)",
+                                    "z_bounds=[-3, 4.8]", "wind=false", "arrival_distance=.5"]) == {
+        "hull_volume": 4e-5, "sensor_noise_std": 1000.0, "water_current": (0.1, 0, 0), "z_bounds": (-3, 4.8),
+        "wind": False, "arrival_distance": 0.5}
+    assert cli.parse_env_overrides(["water_current= ( 0.1, 0 ,-2e-2 ) "]) == {"water_current": (0.1, 0, -0.02)}
+
+
+def test_cli_bad_env_value_is_one_line(capsys, no_compile, tmp_path):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["--policy", "bba", "--env", "water_current=(0.1,0,0,0)", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "Traceback" not in err and err.strip().splitlines()[-1].startswith(
+        "python -m docrl_jax.evaluate: error: --env water_current=(0.1,0,0,0)")
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_curves_need_out(tmp_path, capsys, no_compile, monkeypatch):
+    _write_metrics(tmp_path / "runA" / "metrics.csv", [0])
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as e:
+        cli.main(["--curves", "runA"])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "--curves writes learning_curves.png: give --out DIR" in err
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["runA"]
+
+
+def test_cli_policy_without_out_writes_nothing(tmp_path, capsys, monkeypatch):
+    """BBA, 2 trials of 5 steps: the tables are printed and no folder appears in the current directory."""
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["--policy", "bba", "--trials", "2", "--max-steps", "5", "--scenarios", "1",
+                     "--directions", "a-w"]) == 0
+    out = capsys.readouterr().out
+    assert "| A-W BBA | " in out and "nothing written" in out
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_cli_run_dir_without_config(tmp_path, capsys, no_compile):
@@ -305,6 +346,17 @@ def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
     assert "oracle_run: best policy of seed index 1" in capsys.readouterr().out
     assert (out / "trajectory_s1_air_to_water_seed0.png").exists()
     assert (out / "trajectories_s1_air_to_water_seed1.npz").exists()
+
+
+def test_cli_run_writes_into_the_run_by_default(fake_trainer, tmp_path, monkeypatch):
+    """Without --out an evaluation of --run goes to <first run dir>/evaluation, not the current directory."""
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    assert cli.main(["--run", str(fake_trainer), "--seed-index", "0", "--trials", str(N), "--scenarios", "1",
+                     "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "0",
+                     "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]"]) == 0
+    assert (fake_trainer / "evaluation" / "results.json").exists() and list(cwd.iterdir()) == []
 
 
 def test_cli_run_bad_seed_index(fake_trainer, tmp_path, capsys):

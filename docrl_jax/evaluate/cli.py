@@ -57,19 +57,62 @@ def parse_directions(text: str) -> list[str]:
     return list(dict.fromkeys(aliases[v] for v in vals))
 
 
-def parse_env_overrides(items: Sequence[str]) -> dict[str, Any]:
+# Env parameters the evaluator sets itself.
+_EVALUATOR_KEYS = {"terminate_on_arrival": "--max-steps", "max_episode_steps": "--max-steps",
+                   "scenario": "--scenarios"}
+
+
+def parse_env_value(text: str) -> Any:
+    """An --env value as a user types it: YAML (true, [0.1, 0, 0], null), plus what YAML 1.1 leaves as
+    text: numbers in exponent form (4e-5, 1e3) and tuples in parentheses ((0.1,0,0))."""
+    text = text.strip()
+    if text.startswith("(") and text.endswith(")"):
+        text = "[" + text[1:-1] + "]"
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+    def number(v):
+        if isinstance(v, str):
+            try:
+                return float(v)
+            except ValueError:
+                return v
+        return v
+    if isinstance(value, list):
+        return tuple(number(v) for v in value)
+    return number(value)
+
+
+def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARIOS) -> dict[str, Any]:
+    """--env KEY=VALUE items -> {key: value}, each checked against `EnvParams` for every scenario
+    evaluated, so a bad value is a UsageError naming the key here, not a traceback at the first compile."""
     from docrl_jax.envs import param_docs
+    from docrl_jax.envs.params import make_params
     valid = param_docs()
-    out = {}
+    out, typed = {}, {}
     for item in items:
         if "=" not in item:
             raise UsageError(f"--env {item!r}: expected KEY=VALUE, e.g. --env sensor_noise_std=0.02")
         k, v = item.split("=", 1)
+        k = k.strip()
         if k not in valid:
             raise UsageError(f"--env {k!r}: unknown env parameter; valid names: {', '.join(sorted(valid))}")
-        if k in ("terminate_on_arrival", "max_episode_steps", "scenario"):
-            raise UsageError(f"--env {k}: set by the evaluator (use --max-steps / --scenarios)")
-        out[k] = yaml.safe_load(v)
+        if k in _EVALUATOR_KEYS:
+            raise UsageError(f"--env {k}: set by the evaluator (use {_EVALUATOR_KEYS[k]})")
+        out[k], typed[k] = parse_env_value(v), v
+    for scenario in scenarios:
+        try:
+            make_params(scenario, **{**DEFAULT_EVAL_ENV, **out})
+        except (ValueError, TypeError) as e:
+            # EnvParams' message reads "env parameter NAME=VALUE: why"; name the key as typed when it is one
+            name, _, why = str(e).removeprefix("env parameter ").partition(": ")
+            name = name.split("=", 1)[0]
+            if name in out and why:
+                raise UsageError(f"--env {name}={typed[name].strip()}: {why}") from None
+            given = " ".join(f"{k}={v.strip()}" for k, v in typed.items())
+            raise UsageError(f"--env {given} (scenario {scenario}): {e}") from None
     return out
 
 
@@ -98,9 +141,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=int, default=500, help="step limit of a trial (default 500, the paper's)")
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0)")
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
-                   help=f"env parameter override (repeatable); defaults here: {DEFAULT_EVAL_ENV}")
+                   help="env parameter override (repeatable), e.g. hull_volume=4e-5, water_current=(0.1,0,0) or "
+                        f"[0.1,0,0], wind=false; checked before anything runs; defaults here: {DEFAULT_EVAL_ENV}")
     p.add_argument("--bba-depth-phase", default="after", help="BBA only, order of the depth phase: after (default, the DoCRL script), first (the JINT copy), concurrent, in_air (climb first / descend last)")
-    p.add_argument("--out", default="eval_out", help="output directory (default ./eval_out)")
+    p.add_argument("--out", metavar="DIR",
+                   help="output directory (results.md/.csv/.json, trials.csv, trajectories, figures). Default "
+                        "with --run: <first RUN_DIR>/evaluation; with --policy: none, the tables are printed and "
+                        "nothing is written; --curves needs --out (or --run)")
     p.add_argument("--figures", type=int, default=10, metavar="K",
                    help="trajectories drawn per figure (0 = no trajectory figures; default 10)")
     p.add_argument("--curves", nargs="+", metavar="RUN_DIR",
@@ -123,8 +170,12 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         raise UsageError(f"--max-steps {args.max_steps}: must be a positive integer")
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
-    cfg = {"scenarios": parse_scenarios(args.scenarios), "directions": parse_directions(args.directions),
-           "env": parse_env_overrides(args.env), "seed_indices": parse_seed_indices(args.seed_index)}
+    scenarios = parse_scenarios(args.scenarios)
+    cfg = {"scenarios": scenarios, "directions": parse_directions(args.directions),
+           "env": parse_env_overrides(args.env, scenarios), "seed_indices": parse_seed_indices(args.seed_index),
+           "out": output_dir(args)}
+    if args.curves and cfg["out"] is None:
+        raise UsageError("--curves writes learning_curves.png: give --out DIR")
     for run in args.run or []:
         check_run_dir(run)
         if cfg["seed_indices"] is None:
@@ -141,6 +192,15 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         except RunDirError as e:
             raise UsageError(str(e)) from None
     return cfg
+
+
+def output_dir(args: argparse.Namespace) -> Path | None:
+    """--out; with --run and no --out, <first run dir>/evaluation; otherwise None (write nothing)."""
+    if args.out is not None:
+        return Path(args.out)
+    if args.run:
+        return Path(args.run[0]) / "evaluation"
+    return None
 
 
 def _run_config(run_dir: str | os.PathLike) -> dict:
@@ -219,8 +279,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         cfg = validate_args(args)
     except (UsageError, RunDirError) as e:
         parser.error(str(e))  # exits with status 2 and the usage line
-    out_dir = Path(args.out)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = cfg["out"]
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
     if args.curves:
         from docrl_jax.evaluate import curves
         csvs = [curves.find_metrics_csv(d) for d in args.curves]
@@ -259,6 +320,8 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{row['trials']} success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
               f"{row['timeouts']} time-outs ({row['compile_s'] if fresh else row['run_s']:.1f} s"
               f"{' incl. compile' if fresh else ''})", flush=True)
+        if out_dir is None:
+            return
         stem = f"s{row['scenario']}_{row['direction']}" + ("" if seed_index is None else f"_seed{seed_index}")
         np.savez_compressed(out_dir / f"trajectories_{stem}.npz", positions=trials["positions"].astype(np.float32),
                             steps=trials["steps"], outcome=trials["outcome"], start=np.asarray(start),
@@ -296,8 +359,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                for t in trial_table(method, scenario, row["direction"], trials)]
     meta["wall_time_s"] = round(time.time() - t_start, 2)
     aggs = aggregate_seeds(rows) if args.run is not None else []
-    write_outputs(out_dir, rows, trial_rows, meta, aggs)
     print(markdown_table(rows, seed_rows=aggs))
+    if out_dir is None:
+        print(f"nothing written: pass --out DIR to keep the tables, trials and figures ({meta['wall_time_s']} s)")
+        return 0
+    write_outputs(out_dir, rows, trial_rows, meta, aggs)
     print(f"wrote {out_dir}/results.md, results.csv, results.json, trials.csv ({meta['wall_time_s']} s)")
     return 0
 
