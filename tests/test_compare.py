@@ -10,10 +10,10 @@ from docrl_jax import evaluate
 from docrl_jax.evaluate import compare
 
 
-def _row(method, seed, scenario, direction, successes, t_air=10.0, t_water=5.0):
+def _row(method, seed, scenario, direction, successes, t_air=10.0, t_water=5.0, trials=100):
     n = successes
-    return {"method": method, "seed_index": seed, "scenario": scenario, "direction": direction, "trials": 100,
-            "successes": n, "success_rate": n / 100, "collisions": 100 - n, "out_of_bounds": 0, "timeouts": 0,
+    return {"method": method, "seed_index": seed, "scenario": scenario, "direction": direction, "trials": trials,
+            "successes": n, "success_rate": n / trials, "collisions": trials - n, "out_of_bounds": 0, "timeouts": 0,
             "diverged": 0, "t_air_mean": t_air if n else float("nan"), "t_air_std": 1.0 if n else float("nan"),
             "t_water_mean": t_water if n else float("nan"), "t_water_std": 0.5 if n else float("nan"),
             "time_mean": t_air + t_water, "time_std": 1.0, "path_length_mean": 8.0, "path_length_std": 0.1}
@@ -36,19 +36,19 @@ def test_side_by_side_table(tmp_path):
     lines = text.splitlines()
     aw_d = next(line for line in lines if line.startswith("| A-W DoCRL-D | 95.0"))
     # ours: mean 95, population std over (90, 100, 95) = 4.08; paper: 100, 14.55 ± 0.87, 11.19 ± 2.86
-    assert "95.0 ± 4.1 [90, 100, 95]" in aw_d and "| 100 | 14.55 ± 0.87 | 11.19 ± 2.86 |" in aw_d
+    assert "95.0 ± 4.1 of 100 [90, 100, 95]" in aw_d and "| 100 of 100 | 14.55 ± 0.87 | 11.19 ± 2.86 |" in aw_d
     wa_bba = next(line for line in lines if line.startswith("| W-A BBA |"))
-    assert "| 0 | – | – |" in wa_bba and "| 32 | 38.01 ± 29.83 | 3.79 ± 0.27 |" in wa_bba
+    assert "| 0 of 100 | – | – |" in wa_bba and "| 32 of 100 | 38.01 ± 29.83 | 3.79 ± 0.27 |" in wa_bba
     # paper order within a direction (DoCRL-D before BBA), A-W before W-A
     assert lines.index(aw_d) < next(i for i, l in enumerate(lines) if l.startswith("| A-W BBA |"))
-    assert "| A-W DoCRL-D | 95.0 ± 4.1 (10.0 / 5.0) | 95.0 ± 4.1 (10.0 / 5.0) |" in text
+    assert "| A-W DoCRL-D | 95.0 ± 4.1 of 100 (10.0 / 5.0) | 95.0 ± 4.1 of 100 (10.0 / 5.0) |" in text
 
 
 def test_cli_writes_file_and_rejects_bad_input(tmp_path, capsys):
     a = _write(tmp_path / "d", [_row("DoCRL-D", 0, 2, "air_to_water", 50)])
     out = tmp_path / "t.md"
     assert compare.main([str(a), "--out", str(out)]) == 0
-    assert "| A-W DoCRL-D | 50 |" in out.read_text()
+    assert "| A-W DoCRL-D | 50 of 100 |" in out.read_text()
     with pytest.raises(SystemExit):
         compare.main([str(tmp_path / "missing")])
     assert "does not exist" in capsys.readouterr().err
@@ -60,6 +60,20 @@ def test_cli_writes_file_and_rejects_bad_input(tmp_path, capsys):
     with pytest.raises(SystemExit):
         compare.main([str(a), str(a)])
     assert "distinct --label" in capsys.readouterr().err
+
+
+def test_counts_are_out_of_the_trials_run(tmp_path, capsys):
+    """An evaluation of 10 trials is reported out of 10, beside the paper's count out of 100."""
+    d = tmp_path / "bba10"
+    d.mkdir()
+    rows = [_row("BBA", None, 2, "air_to_water", 4, trials=10), _row("BBA", None, 2, "water_to_air", 0, trials=10)]
+    (d / "results.json").write_text(json.dumps({"meta": {"trials": 10}, "results": rows}))  # as written by hand
+    assert compare.main([str(d)]) == 0
+    text = capsys.readouterr().out
+    assert "out of 100" not in text
+    aw = next(line for line in text.splitlines() if line.startswith("| A-W BBA |"))
+    assert "| 4 of 10 |" in aw and "| 11 of 100 |" in aw
+    assert "| A-W BBA | 4 of 10 (" in text.split("Every scenario")[1]
 
 
 @pytest.mark.parametrize("variant", ["paper_reward", "shaped"])

@@ -53,11 +53,13 @@ def _order(aggs: list[dict]) -> list[dict]:
 
 
 def _success(a: dict, show_seeds: bool = True) -> str:
-    """Successes: the count of a single evaluation, else mean ± std over seeds [and each seed's]."""
+    """Successes out of the trials the evaluation ran: the count of a single evaluation, else mean ± std
+    over seeds [and each seed's]. The 'of N' keeps a 10-trial evaluation from reading as out of 100."""
     per_seed = a["successes_per_seed"]
     if len(per_seed) == 1:
-        return f"{per_seed[0]}"
-    return f"{a['successes_mean']:.1f} ± {a['successes_std']:.1f}" + (f" {per_seed}" if show_seeds else "")
+        return f"{per_seed[0]} of {a['trials']}"
+    return (f"{a['successes_mean']:.1f} ± {a['successes_std']:.1f} of {a['trials']}"
+            + (f" {per_seed}" if show_seeds else ""))
 
 
 def side_by_side_markdown(aggs: list[dict]) -> str:
@@ -66,16 +68,16 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
     aggs = _order(aggs)
     scen = paper_results.TABLE_I_SCENARIO
     out = [f"### Scenario {scen}: ours beside the paper's Table I\n",
-           "Ours: successes out of 100 per seed, mean ± std over seeds [each seed]; t_air, t_water: simulated "
-           "seconds, mean ± std pooled over all seeds' successful trials; collisions, time-outs: mean per seed. "
-           "Paper: one training run, 100 trials.\n",
+           "Ours: successes out of the trials run per seed, mean ± std over seeds [each seed]; t_air, t_water: "
+           "simulated seconds, mean ± std pooled over all seeds' successful trials; collisions, time-outs: mean "
+           "per seed. Paper: one training run, 100 trials.\n",
            "| Test | ours: success | ours: t_air (s) | ours: t_water (s) | ours: collisions | ours: time-outs | "
            "paper: success | paper: t_air (s) | paper: t_water (s) |",
            "|---|---|---|---|---|---|---|---|---|"]
     for a in (a for a in aggs if a["scenario"] == scen):
         try:
             p = paper_results.lookup(a["method"], a["direction"])
-            paper = f"{p['success']} | {plus_minus(*p['t_air'])} | {plus_minus(*p['t_water'])}"
+            paper = f"{p['success']} of {p['trials']} | {plus_minus(*p['t_air'])} | {plus_minus(*p['t_water'])}"
         except KeyError:
             paper = "– | – | –"
         out.append(f"| {SHORT[a['direction']]} {a['method']} | {_success(a)} | {plus_minus(a['t_air_mean'], a['t_air_std'])} "
@@ -83,7 +85,8 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
                    f"{a['timeouts_mean']:.1f} | {paper} |")
     scenarios = sorted({a["scenario"] for a in aggs})
     out += ["", "### Every scenario (ours)\n",
-            "Each cell: successes out of 100, mean ± std over seeds; then t_air / t_water (s), pooled means.\n",
+            "Each cell: successes out of the trials run, mean ± std over seeds; then t_air / t_water (s), "
+            "pooled means.\n",
             "| Test | " + " | ".join(f"Scenario {s}" for s in scenarios) + " |",
             "|---|" + "---|" * len(scenarios)]
     by_key = {(a["direction"], a["method"], a["scenario"]): a for a in aggs}
