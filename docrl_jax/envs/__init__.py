@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from docrl_jax.envs import _quiet_import  # noqa: F401  (first: imports mujoco.mjx without the Warp notice)
 from docrl_jax.envs.huauv import ACTION_SIZE, DIST_SCALE, OBS_LAYOUT, OBS_SIZE, EnvState, HUAUVEnv, SimState
 from docrl_jax.envs.params import EnvParams, make_params, param_docs
 from docrl_jax.envs.wrappers import AutoResetWrapper
