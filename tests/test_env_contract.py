@@ -1,5 +1,9 @@
 """The environment's public contract: make(), parameters, shapes, action handling, determinism."""
 
+import re
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -151,3 +155,42 @@ def test_jit_vmap_64_envs_long_random_rollouts_with_resets_stay_finite():
     # After a done the next transition starts a fresh episode (step counter back to 1).
     d, st = np.asarray(done), np.asarray(steps)
     assert np.all(st[1:][d[:-1]] == 1)
+
+
+@pytest.mark.parametrize("shape", [(2,), (5,), (4, 3), ()])
+def test_step_refuses_an_action_that_is_not_one_envs(env_fns, shape):
+    env, reset_to, _ = env_fns(1, wind=False)
+    s0 = reset_to(jax.random.PRNGKey(0), jnp.array([0.0, 0.0, 2.0]), 0.0, jnp.array([3.0, 3.0, 3.0]))
+    message = (rf"env.step: action has shape {re.escape(str(shape))}, expected \(3,\) = \(ACTION_SIZE,\) for one "
+               rf"env; for a batch of envs, jax.vmap\(env.step\)")
+    for step in (env.step, jax.jit(env.step)):  # checked at trace time: jit raises before compiling
+        with pytest.raises(ValueError, match=message):
+            step(s0, jnp.zeros(shape))
+
+
+@pytest.mark.parametrize("position, yaw, goal, message", [
+    ([0.0, 2.0], 0.0, [3.0, 3.0, 3.0], r"env.reset_to: position has shape \(2,\), expected \(3,\)"),
+    ([0.0, 0.0, 2.0], 0.0, [[3.0, 3.0, 3.0]], r"env.reset_to: goal has shape \(1, 3\), expected \(3,\) for one env; "
+                                              r"for a batch of envs, jax.vmap\(env.reset_to\)"),
+    ([0.0, 0.0, 2.0], [0.0], [3.0, 3.0, 3.0], r"env.reset_to: yaw has shape \(1,\), expected \(\)"),
+])
+def test_reset_to_refuses_wrong_shapes(env_fns, position, yaw, goal, message):
+    env, _, _ = env_fns(1, wind=False)
+    with pytest.raises(ValueError, match=message):
+        jax.jit(env.reset_to)(jax.random.PRNGKey(0), jnp.array(position), jnp.array(yaw), jnp.array(goal))
+
+
+def test_importing_the_envs_prints_no_warp_notice():
+    # mujoco.mjx prints "Failed to import warp: No module named 'warp'" (and mujoco_warp) when the
+    # optional Warp backend is absent; the package drops exactly those lines.
+    out = subprocess.run([sys.executable, "-c", "import docrl_jax.envs"], capture_output=True, text=True, check=True)
+    assert "warp" not in (out.stdout + out.stderr).lower(), out.stdout + out.stderr
+
+
+def test_the_warp_filter_passes_other_output_through(tmp_path, monkeypatch, capsys):
+    from docrl_jax.envs._quiet_import import import_quietly
+    (tmp_path / "noisy_mod.py").write_text("print(\"Failed to import warp: No module named 'warp'\")\n"
+                                           "print('Failed to import warp: CUDA driver too old')\nprint('hello')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert import_quietly("noisy_mod").__name__ == "noisy_mod"
+    assert capsys.readouterr().out == "Failed to import warp: CUDA driver too old\nhello\n"

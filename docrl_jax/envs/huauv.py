@@ -35,6 +35,17 @@ OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 2
 TANK_HALF_WIDTH = 4.9  # inner wall faces at x, y = +-4.9 (orig 1.2)
 
 
+def _one_env(method: str, name: str, x: jax.Array, shape: tuple, size_name: str = "") -> jax.Array:
+    """The env's functions take one env's arrays; a wrong shape would otherwise broadcast or slice
+    silently (a (2,) action gave a (25,) observation). Checked at trace time, so it costs nothing
+    under jit. Raises ValueError naming the argument, both shapes and the fix for a batch."""
+    if x.shape != shape:
+        expected = f"{shape} = {size_name}" if size_name else f"{shape}"
+        raise ValueError(f"env.{method}: {name} has shape {x.shape}, expected {expected} for one env; "
+                         f"for a batch of envs, jax.vmap(env.{method}) over the leading axis")
+    return x
+
+
 @struct.dataclass
 class SimState:
     """Internal state carried between steps (not part of the observation)."""
@@ -123,9 +134,9 @@ class HUAUVEnv:
     def reset_to(self, key: jax.Array, position, yaw, goal) -> EnvState:
         """Vehicle at `position` with `yaw`, level and at rest, hovering thrust, heading for `goal`."""
         p = self.params
-        position = jnp.asarray(position, jnp.float32)
-        goal = jnp.asarray(goal, jnp.float32)
-        yaw = jnp.asarray(yaw, jnp.float32)
+        position = _one_env("reset_to", "position", jnp.asarray(position, jnp.float32), (3,))
+        goal = _one_env("reset_to", "goal", jnp.asarray(goal, jnp.float32), (3,))
+        yaw = _one_env("reset_to", "yaw", jnp.asarray(yaw, jnp.float32), ())
         k_wind, k_noise, k_next = jax.random.split(key, 3)
         quat = jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
         data = self._data0.replace(qpos=jnp.concatenate([position, quat]), qvel=jnp.zeros(6))
@@ -151,7 +162,7 @@ class HUAUVEnv:
         key, k_wind, k_noise, k_goal = jax.random.split(sim.key, 4)
 
         # 1. Action: non-finite entries count as zero (and are counted), then clip to [-1, 1].
-        action = jnp.asarray(action, jnp.float32)
+        action = _one_env("step", "action", jnp.asarray(action, jnp.float32), (ACTION_SIZE,), "(ACTION_SIZE,)")
         finite = jnp.isfinite(action)
         action = jnp.clip(jnp.where(finite, action, 0.0), -1.0, 1.0)
         command = physics.command_from_action(p, action)
