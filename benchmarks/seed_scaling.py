@@ -1,5 +1,5 @@
 """Seeds over devices: seed env steps/s and seed gradient updates/s on 1 device vs all local devices,
-at the same seeds per device (docrl_jax.sharding; the programs of docrl_jax.cli.programs).
+at the same seeds per device (docrl_jax.sharding; the programs of docrl_jax.train.programs).
 
     python benchmarks/seed_scaling.py                                   # td3_lstm, 1 and 2 seeds per GPU
     python benchmarks/seed_scaling.py --configs td3_lstm sac_lstm --num-envs 4096 --seeds-per-device 1 4
@@ -41,7 +41,8 @@ def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters
     import jax
     import numpy as np
 
-    from docrl_jax import cli, sharding
+    from docrl_jax import sharding
+    from docrl_jax.train.programs import compile_programs
     from docrl_jax.config import load_config
     from docrl_jax.train import make_trainer
 
@@ -52,13 +53,12 @@ def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters
     config = load_config(name, overrides)
     trainer = make_trainer(config)
     placement = sharding.seed_placement(config.train)
-    init, chunk, _ = cli.programs(config)
-    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in range(num_seeds)]))
-    state = init(keys, placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32)))
-    jax.block_until_ready(state)
     t0 = time.perf_counter()
-    compiled = chunk.lower(state).compile()
+    programs, _ = compile_programs(config, placement.devices)  # init, chunk and evaluate, in parallel
     compile_s = time.perf_counter() - t0
+    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in range(num_seeds)]))
+    state = programs.init(keys, placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32)))
+    compiled = programs.chunk
     state, m = compiled(state)  # warm-up: fills the buffer so that every later iteration learns
     jax.block_until_ready(m)
     times, learn = [], []

@@ -37,7 +37,7 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import run_meta  # noqa: E402
 
-from docrl_jax.run_dir import FAILURE_COLUMNS  # noqa: E402
+from docrl_jax.train.metrics import FAILURE_COLUMNS  # noqa: E402
 
 
 def read_rows(path: str) -> list[dict]:

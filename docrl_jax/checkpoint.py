@@ -15,10 +15,18 @@ Arrays are stored as global arrays, whatever devices held them: a run whose seed
 several devices or processes (docrl_jax.sharding) writes one checkpoint (every process its shards,
 process 0 the metadata; `save` is collective), and `restore` places it onto the devices asked for
 now: one device by default, or a seed-axis sharding over any number of devices.
+
+A checkpoint is written into a temporary folder and renamed when complete (Orbax), so a crash or a
+full disk never leaves a half-written `<env_steps>/`; `save` removes the temporary folder of a
+write that failed and raises one `OSError` line. `restore_newest_intact` skips a damaged newest
+checkpoint for the one before it and says why.
 """
 
 from __future__ import annotations
 
+import errno
+import shutil
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +34,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
+
+from docrl_jax.errors import RunDirError
 
 CHECKPOINT_DIR = "checkpoints"
 
@@ -68,15 +78,56 @@ def manager(run_dir: str | Path, keep: int | None = None, create: bool = False) 
     return ocp.CheckpointManager(Path(run_dir).resolve() / CHECKPOINT_DIR, options=options)
 
 
+class CheckpointWriteError(OSError):
+    """A checkpoint could not be written; the message names the folder and the cause."""
+
+
 def save(mngr: ocp.CheckpointManager, env_steps: int, state: Any, policy_params: Any, meta: dict,
          best_params: Any = None) -> None:
-    """Writes one checkpoint synchronously (a Ctrl-C right after must not leave it half written)."""
+    """Writes one checkpoint synchronously (a Ctrl-C right after must not leave it half written).
+    On failure (read-only folder, full disk, ...) removes the partial write and raises
+    CheckpointWriteError; the checkpoints written before stay."""
     items = dict(state=ocp.args.StandardSave(_pack(state)), policy=ocp.args.StandardSave(_pack(policy_params)),
                  meta=ocp.args.JsonSave(meta))
     if best_params is not None:
         items["best"] = ocp.args.StandardSave(_pack(best_params))
-    mngr.save(env_steps, args=ocp.args.Composite(**items), force=True)
-    mngr.wait_until_finished()
+    try:
+        mngr.save(env_steps, args=ocp.args.Composite(**items), force=True)
+        mngr.wait_until_finished()
+    except Exception as e:  # Orbax wraps OS errors in its own types, sometimes in threads
+        root = Path(mngr.directory)
+        for partial in root.glob(f"{env_steps}.orbax-checkpoint-tmp*"):
+            shutil.rmtree(partial, ignore_errors=True)
+        cause = _os_error(e)
+        why = (cause.strerror or short_reason(cause)) if cause else short_reason(e)
+        raise CheckpointWriteError(cause.errno if cause else errno.EIO,
+                                   f"cannot write checkpoint {env_steps} in {root}: {why}") from None
+
+
+def _os_error(e: BaseException | None) -> OSError | None:
+    """The OSError at the root of `e` (Orbax and TensorStore re-raise them as other types)."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, OSError):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def os_error_line(e: OSError) -> str:
+    """One line for a file-system error: the path and the cause ('/x/metrics.csv: No space left on device')."""
+    if isinstance(e, CheckpointWriteError):
+        return e.strerror
+    what = e.strerror or short_reason(e)
+    return f"{e.filename}: {what}" if e.filename else what
+
+
+def short_reason(e: BaseException, limit: int = 200) -> str:
+    """The first line of an exception, shortened: Orbax and TensorStore errors carry pages of spec."""
+    text = (str(e).strip().splitlines() or [""])[0]
+    text = text if len(text) <= limit else text[:limit] + " ..."
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
 def latest_step(run_dir: str | Path) -> int | None:
@@ -87,8 +138,8 @@ def latest_step(run_dir: str | Path) -> int | None:
 
 
 def has_best(mngr: ocp.CheckpointManager, step: int) -> bool:
-    """Whether checkpoint `step` holds best policies (runs before 2026-11-23 or without
-    train.track_best_policy do not)."""
+    """Whether checkpoint `step` holds best policies (runs from before best-policy tracking or
+    without train.track_best_policy do not)."""
     return (Path(mngr.directory) / str(step) / "best").is_dir()
 
 
@@ -108,3 +159,34 @@ def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, 
     state = _unpack(abstract_state, out["state"], sharding) if abstract_state is not None else None
     policy = _unpack(abstract_policy, out[item], sharding) if abstract_policy is not None else None
     return state, policy, out["meta"]
+
+
+@dataclass(frozen=True)
+class Restored:
+    step: int
+    state: Any
+    best: Any                  # the best policies, or None when not asked for or not in the checkpoint
+    meta: dict
+    skipped: list              # [(step, why)] of newer checkpoints that could not be read
+
+
+def restore_newest_intact(mngr: ocp.CheckpointManager, abstract_state: Any, sharding=None,
+                          best_shape: Any = None) -> Restored:
+    """The newest checkpoint that reads back whole (state, meta and, with `best_shape`, the best
+    policies when it holds them), trying older ones when a newer one is damaged (a crash while
+    the disk was full, a file deleted by hand). Raises RunDirError naming every checkpoint tried
+    and why, when none reads back."""
+    skipped = []
+    for step in sorted(mngr.all_steps(), reverse=True):
+        try:
+            with_best = best_shape is not None and has_best(mngr, step)
+            state, best, meta = restore(mngr, step, abstract_state=abstract_state, sharding=sharding,
+                                        abstract_policy=best_shape if with_best else None, item="best")
+            if not isinstance(meta, dict) or not {"env_steps", "chunk", "wall_time_s", "pending"} <= set(meta):
+                raise ValueError("its meta/ holds no run record")
+        except Exception as e:  # any unreadable part means the same: try the one before
+            skipped.append((step, short_reason(e)))
+            continue
+        return Restored(step, state, best, meta, skipped)
+    tried = "; ".join(f"{s}: {why}" for s, why in skipped) or "none found"
+    raise RunDirError(f"no intact checkpoint in {mngr.directory} ({tried})")

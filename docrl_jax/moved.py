@@ -13,6 +13,10 @@ import sys
 
 # old module -> where its contents live now
 MOVED_MODULES = {
+    "docrl_jax.cli": "docrl_jax.train.cli",
+    "docrl_jax.run_dir": "docrl_jax.runs (the run directory, load_policy) and docrl_jax.train.metrics (metrics.csv rows)",
+    "docrl_jax.train_eval": "docrl_jax.train.evaluation",
+    "docrl_jax.best_policy": "docrl_jax.train.best_policy",
     "docrl_jax.protocol": "docrl_jax.evaluate.protocol",
     "docrl_jax.paper_results": "docrl_jax.evaluate.paper_results",
 }
@@ -43,6 +47,19 @@ def command(module_name: str, target: str) -> None:
         raise SystemExit(importlib.import_module(target).main())
 
     def __getattr__(name):
-        raise AttributeError(f"{module_name}.{name}: {module_name} is only the command; "
-                             f"import {name} from {target}")
+        if name.startswith("__"):  # the import system's own look-ups
+            raise AttributeError(name)
+        # ImportError, not AttributeError: `from module import name` would replace the latter's message.
+        raise ImportError(f"{module_name}.{name}: {module_name} is only the command; import {name} from {target}")
+    module.__getattr__ = __getattr__
+
+
+def moved_names(module_name: str, names: dict[str, str]) -> None:
+    """Makes `from module_name import OLD` fail with a message naming where OLD lives now."""
+    module = sys.modules[module_name]
+
+    def __getattr__(name):
+        if name in names:  # ImportError: `from module import name` keeps its message
+            raise ImportError(f"{module_name}.{name} moved: import it from {names[name]}")
+        raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
     module.__getattr__ = __getattr__

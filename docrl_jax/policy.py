@@ -17,14 +17,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from docrl_jax.moved import moved_names
+
 
 # Which policy of a run's checkpoint to load: the run's (final) policy, or each seed's best evaluated one
-# (docrl_jax.best_policy). Shared by load_policy and the evaluator's --which.
+# (docrl_jax.train.best_policy). Shared by load_policy and the evaluator's --which.
 CHECKPOINT_POLICIES = ("final", "best")
-
-
-class RunDirError(ValueError):
-    """A run directory is missing, incomplete or incompatible; the message says which and why."""
 
 
 @dataclass(frozen=True)
@@ -34,3 +32,6 @@ class Policy:
     init_carry: Callable[[], Any]
     act: Callable[[Any, Any, Any, dict, Any], tuple[Any, Any]]
     source: str = ""   # where the params came from (load_policy: final or best, which checkpoint)
+
+
+moved_names(__name__, {"RunDirError": "docrl_jax.errors"})

@@ -43,7 +43,9 @@ def single(out: Path) -> None:
     import jax
     import numpy as np
 
-    from docrl_jax import cli, sharding
+    from docrl_jax import sharding
+    from docrl_jax.train import cli
+    from docrl_jax.train.programs import compile_programs
     from docrl_jax.config import ConfigError
     assert len(jax.devices()) == 4, jax.devices()
 
@@ -60,7 +62,7 @@ def single(out: Path) -> None:
     # Where the 4-device programs put the state (already compiled: cheap).
     config = tiny_config(devices=4)
     placement = sharding.seed_placement(config.train)
-    init, _, _ = cli.programs(config)
+    init = compile_programs(config, placement.devices)[0].init
     state = init(placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in range(4)])),
                  placement.put_replicated(np.int32(192)))
     summary["state_devices"] = sorted({len(leaf.sharding.device_set) for leaf in jax.tree.leaves(state)})
@@ -71,7 +73,7 @@ def single(out: Path) -> None:
     devices, note = sharding.seed_devices(tiny_config(num_seeds=6).train)
     summary["six_seeds_default"] = [len(devices), note]
     try:
-        cli.programs(tiny_config(devices=3))
+        sharding.seed_devices(tiny_config(devices=3).train)
     except ConfigError as e:
         summary["three_devices_error"] = str(e)
     summary["eight_devices_status"] = cli.run(tiny_config(devices=8), out / "eight", show_progress=False)
@@ -90,7 +92,9 @@ def multi(out: Path) -> int:
         _jax.make_gloo_tcp_collectives = functools.partial(_jax.make_gloo_tcp_collectives, hostname="127.0.0.1")
     import jax
 
-    from docrl_jax import cli, sharding
+    from docrl_jax import sharding
+    from docrl_jax.train import cli
+    from docrl_jax.train.programs import compile_programs
     sharding.initialize_distributed()
     assert jax.process_count() == 2 and len(jax.devices()) == 4 and len(jax.local_devices()) == 2
     run_dir = out / "multi"

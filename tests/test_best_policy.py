@@ -1,4 +1,4 @@
-"""Best-policy tracking (docrl_jax/best_policy.py): the selection rule against hand-worked cases, and in
+"""Best-policy tracking (docrl_jax/train/best_policy.py): the selection rule against hand-worked cases, and in
 a real run: the kept policy is the checkpointed policy of the evaluation the rule picks from
 metrics.csv, a resumed run keeps the same one, and old checkpoints say they have none."""
 
@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from _trainer_common import finished_run, tmp_dir
 
-from docrl_jax import best_policy, checkpoint
-from docrl_jax.policy import RunDirError
+from docrl_jax import checkpoint, runs
+from docrl_jax.errors import RunDirError
+from docrl_jax.train import best_policy
 from docrl_jax.train import load_policy
 
 
@@ -45,7 +46,7 @@ def test_selection_per_seed_weaker_direction_first_ties_to_the_later():
     m = best_policy.to_meta(b)
     again = best_policy.from_meta(b.params, m)
     assert again.env_steps.tolist() == [50, 50, 0] and again.score.tolist() == b.score.tolist()
-    assert "env step 50" in best_policy.describe(m, 0) and "random goals 0.40" in best_policy.describe(m, 0)
+    assert "env step 50" in runs.describe_best(m, 0) and "random goals 0.40" in runs.describe_best(m, 0)
 
 
 def _rows(run_dir):
@@ -96,7 +97,7 @@ def test_the_run_keeps_the_policy_of_its_best_evaluation():
 
 def test_a_resumed_run_keeps_the_same_best_and_old_checkpoints_have_none():
     from _trainer_common import easy_config
-    from docrl_jax import cli
+    from docrl_jax.train import cli
     seed, finished, _ = _tracking_run()
     d, config = tmp_dir("resume_best"), easy_config(train__seed=seed, **EVERY_CHUNK)
     assert cli.run(config, d, show_progress=False, stop_after_chunks=3) == cli.EXIT_INTERRUPTED

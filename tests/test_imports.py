@@ -1,6 +1,7 @@
 """No import cycles among the package's modules, counting imports inside functions too (a lazy import
 hides a cycle from Python but not from a reader), not those under `if TYPE_CHECKING`: each module's
-dependencies read one way."""
+dependencies read one way. And the floors of the house: no module imports one of a floor above its
+own (the commands on top, the env at the bottom)."""
 
 from __future__ import annotations
 
@@ -60,6 +61,37 @@ def _cycle(graph):
 
 def test_no_import_cycles():
     graph = _graph()
-    assert {"docrl_jax.cli", "docrl_jax.train", "docrl_jax.evaluate", "docrl_jax.plotting"} <= set(graph)
-    assert "docrl_jax.train" in graph["docrl_jax.cli"] and "docrl_jax.plotting" in graph["docrl_jax.evaluate"]
+    assert {"docrl_jax.train.cli", "docrl_jax.train", "docrl_jax.evaluate", "docrl_jax.evaluate.plotting"} <= set(graph)
+    assert "docrl_jax.train.loop" in graph["docrl_jax.train.cli"]
+    assert "docrl_jax.train.loop" in graph["docrl_jax.train.sweep"]
     assert _cycle(graph) is None, " -> ".join(_cycle(graph))
+
+
+# Floors, bottom first: a module may import its own floor and those below, never one above. The
+# first matching prefix names a module's floor.
+FLOORS = [
+    ["docrl_jax.errors", "docrl_jax.moved", "docrl_jax.schema", "docrl_jax.resources"],
+    ["docrl_jax.envs", "docrl_jax.config"],
+    ["docrl_jax.networks", "docrl_jax.replay", "docrl_jax.algorithms", "docrl_jax.sharding", "docrl_jax.policy",
+     "docrl_jax.baselines"],
+    ["docrl_jax.checkpoint", "docrl_jax.memory"],
+    ["docrl_jax.runs"],
+    ["docrl_jax.evaluate"],
+    ["docrl_jax.train"],
+    ["docrl_jax.sweep", "docrl_jax.compare", "docrl_jax.plotting", "docrl_jax"],   # command names, the package
+]
+
+
+def _floor(module: str) -> int:
+    for i, prefixes in enumerate(FLOORS):
+        if any(module == p or module.startswith(p + ".") for p in prefixes if p != "docrl_jax"):
+            return i
+    assert module == "docrl_jax" or module.count(".") == 1, f"{module}: on no floor; add it to FLOORS"
+    return len(FLOORS) - 1
+
+
+def test_no_import_runs_back_up():
+    graph = _graph()
+    up = [f"{m} -> {t}" for m, targets in graph.items() for t in targets
+          if t != "docrl_jax" and _floor(t) > _floor(m)]
+    assert not up, up

@@ -142,7 +142,7 @@ def test_policy_average_tau_outside_0_1_is_rejected(tau):
 
 
 def test_compile_cache_folder_default_env_flag_and_off(monkeypatch, tmp_path):
-    from docrl_jax import cli
+    from docrl_jax.train import programs as cli
     saved = jax.config.jax_compilation_cache_dir
     try:
         monkeypatch.delenv("DOCRL_JAX_COMPILE_CACHE", raising=False)
@@ -158,5 +158,5 @@ def test_compile_cache_folder_default_env_flag_and_off(monkeypatch, tmp_path):
 
 
 def test_the_no_progress_eta_reads_as_a_duration():
-    from docrl_jax.cli import _duration
-    assert [_duration(s) for s in (12.4, 250, 3600 * 37 + 125)] == ["12 s", "4 min 10 s", "37 h 02 min"]
+    from docrl_jax.train.metrics import duration
+    assert [duration(s) for s in (12.4, 250, 3600 * 37 + 125)] == ["12 s", "4 min 10 s", "37 h 02 min"]

@@ -19,8 +19,8 @@ import jax
 import jax.numpy as jnp
 from _trainer_common import easy_config, finished_run
 
-from docrl_jax import cli
 from docrl_jax.train import make_trainer
+from docrl_jax.train.programs import compile_programs, eval_keys
 
 STEPS = 160_000
 MARGIN = 0.5
@@ -35,9 +35,10 @@ def test_td3_lstm_learns_the_easy_task():
     trained = float(rows[-1]["success_rate"])
 
     config = easy_config(**overrides)
-    init, _, evaluate = cli.programs(config)
+    programs = compile_programs(config)[0]
+    init, evaluate = programs.init, programs.evaluate
     untrained_state = init(jax.random.PRNGKey(config.train.seed)[None],
                            jnp.asarray(make_trainer(config).total_env_steps, jnp.int32))
-    untrained = float(evaluate(untrained_state.agent.actor, cli.eval_keys([config.train.seed], STEPS))["success_rate"][0])
+    untrained = float(evaluate(untrained_state.agent.actor, eval_keys([config.train.seed], STEPS))["success_rate"][0])
     print(f"success after {STEPS} env steps: {trained:.3f}; untrained on the same episodes: {untrained:.3f}")
     assert trained >= untrained + MARGIN, (trained, untrained)

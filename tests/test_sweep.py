@@ -14,8 +14,8 @@ import pytest
 import yaml
 from _trainer_common import EASY, finished_run, tmp_dir
 
-from docrl_jax import cli, sweep
-from docrl_jax.config import ConfigError
+from docrl_jax.train import cli, sweep
+from docrl_jax.errors import ConfigError, RunDirError
 
 
 def _rows(path):
@@ -48,7 +48,7 @@ def test_grid_refuses_unknown_and_unsweepable_keys_before_compiling(tmp_path):
     d.mkdir()
     (d / sweep.SWEEP_FILE).write_text("{}")
     assert sweep.main(["--config", _easy_yaml(), "--grid", "agent.tau=0.1", "--run-dir", str(d)]) == cli.EXIT_CONFIG
-    with pytest.raises(cli.RunDirError, match="is a sweep.*cannot be resumed"):
+    with pytest.raises(RunDirError, match="is a sweep.*cannot be resumed"):
         cli._resolve(cli.build_parser().parse_args(["--run-dir", str(d), "--resume"]))
     assert cli.main(["--run-dir", str(d), "--resume"]) == cli.EXIT_CONFIG
 

@@ -16,9 +16,12 @@ import pytest
 import yaml
 from _trainer_common import easy_config, finished_run, tmp_dir
 
-from docrl_jax import checkpoint, cli
+from docrl_jax import checkpoint
+from docrl_jax.train import cli
+from docrl_jax.train.programs import compile_programs
 from docrl_jax.config import config_from_dict
-from docrl_jax.policy import Policy, RunDirError
+from docrl_jax.errors import RunDirError
+from docrl_jax.policy import Policy
 from docrl_jax.train import load_policy, make_trainer
 
 
@@ -70,8 +73,8 @@ def test_vmapped_seeds_equal_separate_runs():
     chunk is compared: counts exactly, losses to 1e-3 relative, and each parameter tensor of seed i
     must be at least 10x closer to seed i's separate run than the two seeds' runs are to each other."""
     two = easy_config(train__num_seeds=2, train__seed=3)
-    init2, chunk2, _ = cli.programs(two)
-    init1, chunk1, _ = cli.programs(easy_config())
+    init2, chunk2 = compile_programs(two)[0][:2]
+    init1, chunk1 = compile_programs(easy_config())[0][:2]
     total = _total(two)
     s2, m2 = chunk2(init2(jnp.stack([jax.random.PRNGKey(3), jax.random.PRNGKey(4)]), total))
     m2 = jax.device_get(m2)
@@ -92,7 +95,7 @@ def test_vmapped_seeds_equal_separate_runs():
 
 def test_replay_stores_the_acting_carry_reset_at_episode_start():
     config = easy_config()
-    init, chunk, _ = cli.programs(config)
+    init, chunk = compile_programs(config)[0][:2]
     state = init(jax.random.PRNGKey(0)[None], _total(config))
     params = jax.device_get(jax.tree.map(lambda x: x[0], state.agent.actor))  # before the chunk donates it
     state, _ = chunk(state)
@@ -175,7 +178,7 @@ def test_non_finite_loss_stops_and_keeps_the_last_good_checkpoint(capsys):
                    stop_after_chunks=1) == cli.EXIT_INTERRUPTED
     assert checkpoint.latest_step(d) == 4000
     absurd = easy_config(train__checkpoint_every=4000, agent__actor_lr=1e30, agent__critic_lr=1e30)
-    status = cli.run(absurd, d, resume=True, console=cli.Console(), show_progress=False)
+    status = cli.run(absurd, d, resume=True, console=cli.make_console(), show_progress=False)
     assert status == cli.EXIT_NONFINITE
     assert re.search(r"non-finite loss at env step \d+ \(seed 0\)", capsys.readouterr().out)
     assert checkpoint.latest_step(d) == 4000

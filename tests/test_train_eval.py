@@ -1,4 +1,4 @@
-"""The in-training evaluation (docrl_jax.train_eval) against physical certainties, with hand-written
+"""The in-training evaluation (docrl_jax.train.evaluation) against physical certainties, with hand-written
 constant policies instead of a trained actor: why a paper pair fails is reported correctly."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from docrl_jax.config import load_config
-from docrl_jax.run_dir import FAILURE_COLUMNS
-from docrl_jax.train_eval import make_evaluate
+from docrl_jax.train.evaluation import make_evaluate
+from docrl_jax.train.metrics import FAILURE_COLUMNS
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_resume_gives_an_older_metrics_csv_the_failure_columns(tmp_path):
     today's header (new columns empty), rows after the checkpoint are dropped as before."""
     import csv
 
-    from docrl_jax.run_dir import METRIC_COLUMNS, truncate_metrics
+    from docrl_jax.train.metrics import METRIC_COLUMNS, truncate_metrics
     old = [c for c in METRIC_COLUMNS if c not in FAILURE_COLUMNS]
     path = tmp_path / "metrics.csv"
     with open(path, "w", newline="") as fh:
@@ -66,9 +66,9 @@ def test_resume_gives_an_older_metrics_csv_the_failure_columns(tmp_path):
 def test_paper_pair_starts_are_the_evaluators_trials():
     """train.eval_pair_starts 'paper' draws the evaluator's trial starts (protocol.trial_starts: the same
     numbers for the same key), 'random_yaw' the exact start facing any way."""
-    from docrl_jax import protocol
+    from docrl_jax.evaluate import protocol
     from docrl_jax.envs import eval_pair
-    from docrl_jax.train_eval import pair_starts
+    from docrl_jax.train.evaluation import pair_starts
     key = jax.random.PRNGKey(3)
     for direction in protocol.DIRECTIONS:
         start, _ = eval_pair(2, direction)

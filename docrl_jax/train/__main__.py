@@ -1,5 +1,5 @@
-"""`python -m docrl_jax.train`: the command line (docrl_jax/cli.py) around the trainer program."""
+"""`python -m docrl_jax.train`: the command line (docrl_jax.train.cli) around the trainer program."""
 
-from docrl_jax.cli import main
+from docrl_jax.train.cli import main
 
 raise SystemExit(main())

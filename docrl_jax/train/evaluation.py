@@ -19,13 +19,13 @@ import jax.numpy as jnp
 
 import docrl_jax.envs as envs
 from docrl_jax.config import Config, env_kwargs
-from docrl_jax.protocol import DIRECTIONS, NOMINAL_YAW, trial_starts
+from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, trial_starts
 
 
 def pair_starts(how: str, key: jax.Array, start, direction: str, n: int) -> tuple[jax.Array, jax.Array]:
     """Start positions (n, 3) and yaws (n,) of the paper-pair episodes of one direction.
 
-    'paper': the evaluator's trials (`protocol.trial_starts`: nominal yaw of the direction +-0.1 rad,
+    'paper': the evaluator's trials (`evaluate.protocol.trial_starts`: nominal yaw of the direction +-0.1 rad,
     position +-0.1 m), so the training-time score estimates the paper protocol's. 'random_yaw': the
     exact start, facing a uniformly random yaw (harder: the vehicle must first turn towards its goal)."""
     if how == "paper":

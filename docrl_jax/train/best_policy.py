@@ -65,12 +65,3 @@ def to_meta(best: BestPolicy) -> dict:
 def from_meta(params: Any, meta: dict) -> BestPolicy:
     return BestPolicy(params, np.asarray(meta["score"], np.float64), np.asarray(meta["env_steps"], np.int64),
                       list(meta["evaluation"]))
-
-
-def describe(meta: dict, seed_index: int) -> str:
-    """One line saying which evaluation a seed's best comes from."""
-    ev = meta["evaluation"][seed_index]
-    names = {"success_air_to_water": "A-W", "success_water_to_air": "W-A", "success_rate": "random goals"}
-    parts = [f"{names[k]} {v:.2f}" for k, v in ev.items()]
-    step = meta["env_steps"][seed_index]
-    return f"best policy of seed index {seed_index}: the evaluation at env step {step:,} ({', '.join(parts)})"

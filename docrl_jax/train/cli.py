@@ -1,0 +1,300 @@
+"""`python -m docrl_jax.train`: trains a config into a run directory, or resumes one.
+
+    python -m docrl_jax.train --config td3_lstm [--set section.key=value ...] [--run-dir DIR]
+    python -m docrl_jax.train --run-dir DIR --resume [--set train.total_env_steps=...]
+    srun ... python -m docrl_jax.train --distributed --config ... --run-dir SHARED_DIR   (docs/TRAINER.md)
+
+Exit codes: 0 done, 2 bad config, run directory or file system, 3 non-finite loss, 130 interrupted
+(checkpoint saved).
+
+Compiled programs are kept in JAX's persistent compilation cache, so a second launch of the same
+config (any seed, length or run directory) skips compilation: by default in
+$XDG_CACHE_HOME/docrl_jax/jax (~/.cache/docrl_jax/jax); `--compile-cache DIR` or the environment
+variable DOCRL_JAX_COMPILE_CACHE choose another folder, and `off` disables it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+from rich.console import Console, Group
+from rich.live import Live
+from rich.progress import BarColumn, Progress, TextColumn
+from rich.syntax import Syntax
+from rich.text import Text
+
+from docrl_jax import checkpoint, memory, runs, sharding
+from docrl_jax.config import Config, load_config, to_yaml
+from docrl_jax.errors import ConfigError, RunDirError
+from docrl_jax.train import best_policy, metrics
+from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, Cadence, Hooks,
+                                  Interrupt, make_console, run_chunks)
+from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
+from docrl_jax.train.trainer import make_trainer
+
+__all__ = ["EXIT_CONFIG", "EXIT_INTERRUPTED", "EXIT_NONFINITE", "EXIT_OK", "build_parser", "main", "run"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m docrl_jax.train", description=__doc__.split("\n\n")[0])
+    p.add_argument("--config", help="packaged config name (td3_lstm, sac_lstm, ddpg_mlp, sac_mlp) or a YAML path")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one config value (YAML scalar); repeatable")
+    p.add_argument("--run-dir", help="output directory (default runs/<name>-<UTC time>)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its newest intact "
+                                                         "checkpoint")
+    p.add_argument("--no-progress", action="store_true", help="print one line per chunk instead of a progress bar")
+    p.add_argument("--compile-cache", default=None, metavar="DIR|off",
+                   help="JAX persistent compilation cache folder (default $DOCRL_JAX_COMPILE_CACHE, else "
+                        "~/.cache/docrl_jax/jax); 'off' disables it")
+    p.add_argument("--distributed", action="store_true",
+                   help="one of several processes (hosts, or one per GPU): jax.distributed.initialize() from "
+                        "JAX_COORDINATOR_ADDRESS/JAX_NUM_PROCESSES/JAX_PROCESS_ID or the cluster (SLURM srun, "
+                        "Open MPI); implied when JAX_COORDINATOR_ADDRESS and JAX_NUM_PROCESSES are set. "
+                        "Seeds are split over every process's devices; process 0 writes the outputs")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    launch = time.time()
+    args = build_parser().parse_args(argv)
+    console = make_console()
+    notes: list[str] = []
+    try:
+        if args.distributed or sharding.distributed_from_env():
+            sharding.initialize_distributed()  # before anything touches a device
+            if not sharding.is_primary():
+                console = make_console(quiet=True)
+            if not args.run_dir:
+                raise RunDirError("a multi-process run needs --run-dir: one directory every process can reach "
+                                  "(a shared file system when the processes are on several hosts)")
+        config, run_dir = _resolve(args, notes)
+    except (ConfigError, RunDirError) as e:
+        console.print(f"[bold red]error:[/] {e}")
+        return EXIT_CONFIG
+    cache = enable_compile_cache(args.compile_cache)
+    console.print(f"[bold]run directory:[/] {run_dir}")
+    console.print(Syntax(to_yaml(config), "yaml", theme="ansi_dark"))
+    console.print(f"[bold]device:[/] {device_line()}")
+    for note in notes:
+        console.print(f"[bold]chosen for this device:[/] {note}")
+    console.print(f"[bold]compilation cache:[/] {cache or 'off'}")
+    return run(config, run_dir, resume=args.resume, console=console, show_progress=not args.no_progress,
+               launch_time=launch)
+
+
+def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
+    """The config and run directory of the command line; refuses what would lose or mix up a run."""
+    if args.resume:
+        if not args.run_dir:
+            raise RunDirError("--resume needs --run-dir DIR")
+        if args.config:
+            raise ConfigError("--resume takes the config from the run directory's config.yaml; drop --config "
+                              "(use --set to change e.g. train.total_env_steps)")
+        run_dir = Path(args.run_dir)
+        if (run_dir / runs.SWEEP_FILE).is_file():
+            raise RunDirError(f"{str(run_dir)!r} is a sweep: sweeps write no checkpoints and cannot be resumed; "
+                              f"train one combination with --config {run_dir}/cNN/config.yaml")
+        runs.read_config(run_dir)  # clear errors for a missing dir or config
+        if checkpoint.latest_step(run_dir) is None:
+            raise RunDirError(f"{str(run_dir)!r} has no checkpoint to resume from (the run stopped before its "
+                              f"first); start it again with --config and a fresh --run-dir")
+        return load_config(run_dir / runs.CONFIG_FILE, args.set, notes=notes), run_dir
+    if not args.config:
+        raise ConfigError("--config is required (a packaged name such as td3_lstm, or a YAML path)")
+    config = load_config(args.config, args.set, notes=notes)
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.name}-{stamp}"
+    runs.check_fresh(run_dir)
+    return config, run_dir
+
+
+class _ProgressPanel:
+    """The progress bar with the latest statistics on a line of their own (they do not fit beside it)."""
+
+    def __init__(self, progress: Progress):
+        self.progress, self.line = progress, "waiting for the first chunk (compiling)"
+
+    def __rich__(self):
+        return Group(self.progress.get_renderable(), Text(self.line))
+
+
+class _NoWriter:
+    """TensorBoard writer of the processes other than 0."""
+
+    def add_scalar(self, *args, **kwargs):
+        pass
+
+    def close(self):
+        pass
+
+
+def run(config: Config, run_dir: str | Path, resume: bool = False, console: Console | None = None,
+        show_progress: bool = True, launch_time: float | None = None, stop_after_chunks: int | None = None) -> int:
+    """Trains (or resumes) `config` into `run_dir`; returns an exit code. A file-system error (a
+    read-only directory, a full disk) ends it with one line naming the path and the cause; the
+    checkpoints already written stay. `stop_after_chunks` acts like a Ctrl-C after that many
+    chunks of this call (tests use it to interrupt a run)."""
+    launch_time = time.time() if launch_time is None else launch_time
+    # Several processes (docrl_jax.sharding) run this same loop in step; only process 0 writes files.
+    primary = sharding.is_primary()
+    console = console if console is not None and primary else make_console(quiet=not (show_progress and primary))
+    try:
+        return _run(config, Path(run_dir), resume, console, show_progress, launch_time, stop_after_chunks, primary)
+    except (ConfigError, RunDirError) as e:
+        console.print(f"[bold red]error:[/] {e}")
+        return EXIT_CONFIG
+    except OSError as e:
+        console.print(f"[bold red]error:[/] {checkpoint.os_error_line(e)}")
+        return EXIT_CONFIG
+    except KeyboardInterrupt:
+        newest = checkpoint.latest_step(run_dir)
+        console.print(f"quit without saving; newest checkpoint: "
+                      f"{'none' if newest is None else f'env step {newest:,}'} in {Path(run_dir) / checkpoint.CHECKPOINT_DIR}")
+        return EXIT_INTERRUPTED
+
+
+def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_progress: bool, launch_time: float,
+         stop_after_chunks: int | None, primary: bool) -> int:
+    t_cfg = config.train
+    placement = sharding.seed_placement(t_cfg)  # the device plan, resolved once for the whole run
+    memory.check_memory(config, placement.devices)
+    if jax.process_count() > 1:  # every process has read the run directory before process 0 writes to it
+        from jax.experimental import multihost_utils
+        multihost_utils.sync_global_devices("docrl_jax.train.cli.run")
+    if placement.note:
+        console.print(f"[yellow]note:[/] {placement.note}")
+    if primary:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / runs.CONFIG_FILE).write_text(to_yaml(config))
+    trainer = make_trainer(config)
+    seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
+    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
+    console.print("compiling the training, evaluation and initialisation programs ...")
+    programs, compile_s = compile_programs(config, placement.devices)
+    console.print(f"compiled in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)")
+    startup = {"compile_s": round(compile_s, 2), "launch_to_compiled_s": round(time.time() - launch_time, 2)}
+    mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
+    metrics_path = run_dir / runs.METRICS_FILE
+    total = placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32))
+
+    if resume:
+        restored = checkpoint.restore_newest_intact(
+            mngr, programs.state_shape, placement.seed_sharding,
+            best_shape=programs.state_shape.agent.actor_average if t_cfg.track_best_policy else None)
+        for step, reason in restored.skipped:
+            console.print(f"[yellow]skipped checkpoint {step}:[/] {reason}")
+        step, state, meta = restored.step, restored.state, restored.meta
+        done_chunks, wall_before, pending = meta["chunk"], meta["wall_time_s"], meta["pending"]
+        # A checkpoint from before best-policy tracking starts it afresh at the next evaluation.
+        best = (best_policy.from_meta(placement.get(restored.best), meta["best"])
+                if restored.best is not None else None)
+        if done_chunks * trainer.steps_per_chunk != meta["env_steps"]:
+            raise RunDirError(f"checkpoint {step} was written with another chunk size; train.log_every and "
+                              f"env.num_envs cannot change on resume")
+        # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
+        state = state.replace(total_steps=placement.put_seeds(
+            np.full(state.total_steps.shape, trainer.total_env_steps, np.int32)))
+        last_rows = metrics.truncate_metrics(metrics_path, step) if primary else []
+        console.print(f"resumed from env step {step:,} (chunk {done_chunks}/{trainer.num_chunks})")
+    else:
+        state = programs.init(keys, total)
+        done_chunks, wall_before, pending, best, last_rows = 0, 0.0, metrics.empty_pending(len(seeds)), None, []
+        if primary:
+            metrics.write_header(metrics_path)
+    env_steps = done_chunks * trainer.steps_per_chunk
+    if primary:
+        from tensorboardX import SummaryWriter
+        writer = SummaryWriter(str(run_dir / runs.TB_DIR), purge_step=env_steps if resume else None)
+    else:
+        writer = _NoWriter()
+    last_eval = metrics.eval_success(last_rows)
+
+    def wall() -> float:
+        return wall_before + time.time() - launch_time
+
+    def evaluate(state, steps: int):
+        nonlocal pending, best, last_eval
+        ekeys = placement.put_seeds(np.asarray(eval_keys(seeds, steps)))
+        ev = placement.get(programs.evaluate(state.agent.actor_average, ekeys))
+        if t_cfg.track_best_policy:
+            best, _ = best_policy.update(best, placement.get(state.agent.actor_average), ev, steps)
+        trained = {}
+        if t_cfg.eval_trained_actor and config.agent.policy_average_tau < 1.0:
+            trained = placement.get(programs.evaluate(state.agent.actor, ekeys))  # same episodes, the trained actor
+        rows = metrics.eval_rows(config, seeds, steps, wall(), pending, ev, trained, placement.get(state.agent.updates))
+        if primary:
+            metrics.append_rows(metrics_path, rows)
+        for k, v in ev.items():  # every metric the evaluation returns, mean over seeds
+            writer.add_scalar(f"eval/{k}", float(np.mean(v)), steps)
+        pending = metrics.empty_pending(len(seeds))
+        last_eval = metrics.eval_success(rows)
+
+    def save(state, steps: int, chunks: int):
+        meta = {"env_steps": steps, "chunk": chunks, "wall_time_s": wall(), "pending": pending, "name": config.name}
+        best_params = None
+        if best is not None:  # each seed's best evaluated policy so far (docrl_jax.train.best_policy)
+            meta["best"] = best_policy.to_meta(best)
+            best_params = jax.tree.map(placement.put_seeds, best.params)
+        # The run's policy is the actor's Polyak average (= the trained actor unless averaged).
+        checkpoint.save(mngr, steps, state, state.agent.actor_average, meta, best_params)
+
+    def check(m: dict, steps_before: int) -> bool:
+        nonlocal pending
+        bad = np.asarray(m["nonfinite_iter"])
+        if np.any(bad >= 0):
+            i = int(np.argmax(bad >= 0))
+            at = steps_before + (int(bad[i]) + 1) * config.env.num_envs
+            last = mngr.latest_step()
+            console.print(f"[bold red]non-finite loss[/] at env step {at} (seed {seeds[i]}); training stopped. "
+                          f"Last good checkpoint: {'none' if last is None else f'env step {last}'} in "
+                          f"{run_dir / checkpoint.CHECKPOINT_DIR}")
+            return False
+        metrics.accumulate(pending, m)
+        return True
+
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
+                        TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"), TextColumn("{task.fields[sps]}"),
+                        TextColumn("{task.fields[eta]}"), console=console)
+    task = progress.add_task(config.name, total=trainer.total_env_steps, completed=env_steps, sps="",
+                             eta="ETA once learning starts")
+    panel = _ProgressPanel(progress)
+
+    def show(m: dict, steps: int, sps: float, eta: str):
+        if primary and not startup.get("launch_to_first_chunk_s"):  # start-up as a user sees it
+            startup.update(launch_to_first_chunk_s=round(time.time() - launch_time, 2), device=device_line())
+            (run_dir / runs.STARTUP_FILE).write_text(json.dumps(startup, indent=1))
+        metrics.log_chunk(writer, m, steps, sps)
+        progress.update(task, completed=steps, sps=f"{sps:,.0f} steps/s", eta=eta)
+        panel.line = metrics.stats_line(m, last_eval)
+        if not show_progress:
+            console.print(f"{steps:,} steps  {sps:,.0f} steps/s  {eta}  {panel.line}")
+
+    hooks = Hooks(check=check, evaluate=evaluate, show=show, save=save)  # save is collective: every process
+    evals = Cadence(t_cfg.eval_every, t_cfg.eval_every_minutes)
+    saves = Cadence(t_cfg.checkpoint_every, t_cfg.checkpoint_every_minutes)
+    with Interrupt(console) as interrupt, (Live(panel, console=console, refresh_per_second=4)
+                                           if show_progress else contextlib.nullcontext()):
+        newest = mngr.latest_step()
+        interrupt.newest = "none yet" if newest is None else f"env step {newest:,}"
+        if not resume:
+            evaluate(state, 0)
+            evals.done()
+        state, done_chunks, status = run_chunks(
+            trainer, programs.chunk, state, done_chunks, hooks, evals, saves, interrupt, get=placement.get,
+            any_process=placement.any_process, num_seeds=len(seeds), stop_after_chunks=stop_after_chunks)
+    writer.close()
+    mngr.close()
+    env_steps = done_chunks * trainer.steps_per_chunk
+    if status == EXIT_OK:
+        console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")
+    elif status == EXIT_INTERRUPTED:
+        console.print(f"interrupted: checkpoint saved at env step {env_steps:,}; resume with "
+                      f"python -m docrl_jax.train --run-dir {run_dir} --resume")
+    return status

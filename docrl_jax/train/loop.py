@@ -1,0 +1,216 @@
+"""The one chunk loop, shared by a training run (docrl_jax.train.cli) and a sweep
+(docrl_jax.train.sweep): run the compiled chunk, check its metrics, evaluate and checkpoint when
+due, show progress, and stop cleanly on Ctrl-C.
+
+What differs between a run and a sweep (what a non-finite loss means, where evaluations are
+written, whether there are checkpoints) comes in as `Hooks`; when to evaluate and save is a
+`Cadence` each, by env steps or by wall-clock minutes, whichever comes first, so a slow device
+still writes learning curves and checkpoints.
+
+Ctrl-C (or SIGTERM, as a cluster's scheduler sends before it kills a job) is answered at once:
+the loop finishes the running chunk (XLA cannot stop it half-way), saves a checkpoint and stops.
+A second one says again what is happening; a third quits without waiting, keeping the checkpoints
+already written; none interrupts a checkpoint being written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import jax
+import numpy as np
+
+from docrl_jax.train.metrics import duration
+
+EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
+
+
+def make_console(**kwargs):
+    """The commands' Rich console: output that is not a terminal (a log file, a pipe) is not wrapped
+    at 80 columns, so a printed command or path stays on one line."""
+    from rich.console import Console
+    return Console(soft_wrap=True, **kwargs)
+
+
+class Cadence:
+    """When a periodic action is due: each time the env steps cross a multiple of `every_steps`, or
+    once `every_minutes` of wall-clock have passed since it was last done (`done`)."""
+
+    def __init__(self, every_steps: int, every_minutes: float, clock: Callable[[], float] = time.monotonic):
+        self.every_steps, self.every_s, self.clock = every_steps, every_minutes * 60.0, clock
+        self.last = clock()
+
+    def due(self, prev_steps: int, steps: int) -> bool:
+        return (steps // self.every_steps > prev_steps // self.every_steps
+                or self.clock() - self.last >= self.every_s)
+
+    def done(self) -> None:
+        self.last = self.clock()
+
+    def remaining(self, steps: int, total: int) -> int:
+        """Env-step occasions left until `total` (the one at the end included)."""
+        return total // self.every_steps - steps // self.every_steps + (total % self.every_steps != 0)
+
+
+class Eta:
+    """Time left, from the chunks that learned on every iteration and the evaluations so far. The
+    chunks before `train.start_steps` only step the envs and run far faster than the rest of the run,
+    so there is no estimate until a learning chunk has been timed."""
+
+    def __init__(self):
+        self.chunk_s: list[float] = []
+        self.eval_s: list[float] = []
+
+    def add_chunk(self, seconds: float, learning: bool) -> None:
+        if learning:
+            self.chunk_s.append(seconds)
+
+    def add_eval(self, seconds: float) -> None:
+        self.eval_s.append(seconds)
+
+    def seconds(self, chunks_left: int, evals_left: int) -> float | None:
+        if not self.chunk_s:
+            return None
+        recent = self.chunk_s[-10:]  # the pace now (the first learning chunk may include warm-up)
+        per_eval = float(np.median(self.eval_s)) if self.eval_s else 0.0
+        return chunks_left * float(np.median(recent)) + evals_left * per_eval
+
+    def text(self, chunks_left: int, evals_left: int) -> str:
+        s = self.seconds(chunks_left, evals_left)
+        return "ETA once learning starts" if s is None else f"ETA {duration(s)}"
+
+
+class Interrupt:
+    """Catches SIGINT and SIGTERM for the loop: `requested` after the first; messages are printed by
+    `poll` (called while the loop waits for a chunk) rather than in the handler, so they never
+    interleave with the progress display's own writes."""
+
+    def __init__(self, console, action: str = "save a checkpoint"):
+        self.console, self.action = console, action
+        self.count, self.said = 0, 0
+        self.next_stop = "after the running chunk"
+        self.newest = "none yet"     # what a quit without saving keeps (set by the caller)
+        self._saving = self._deferred = False
+        self._old: dict = {}
+
+    def __enter__(self):
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self._old[sig] = signal.signal(sig, self._handle)
+            except ValueError:  # not the main thread: signals stay with the caller
+                pass
+        return self
+
+    def __exit__(self, *exc):
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+    @property
+    def requested(self) -> bool:
+        return self.count > 0
+
+    def _handle(self, signum, frame):
+        self.count += 1
+        if self.count >= 3:
+            if self._saving:
+                self._deferred = True
+            else:
+                raise KeyboardInterrupt
+
+    def poll(self) -> None:
+        while self.said < self.count:
+            self.said += 1
+            if self.said == 1:
+                self.console.print(f"[bold yellow]stopping[/] {self.next_stop}, then I {self.action} and stop "
+                                   f"(Ctrl-C twice more quits without saving)")
+            elif self.said == 2:
+                self.console.print(f"[bold yellow]still stopping[/] {self.next_stop} to {self.action}; one more "
+                                   f"Ctrl-C quits without saving (newest checkpoint kept: {self.newest})")
+
+    @contextlib.contextmanager
+    def saving(self):
+        """A checkpoint write is never cut off: a third Ctrl-C during it takes effect once it ends."""
+        self._saving = True
+        try:
+            yield
+        finally:
+            self._saving = False
+            if self._deferred:
+                self._deferred = False
+                raise KeyboardInterrupt
+
+
+def wait(tree: Any, interrupt: Interrupt | None = None, poll_s: float = 0.05) -> Any:
+    """Blocks until the device has computed `tree`, returning to Python every `poll_s` so a Ctrl-C is
+    answered at once (a thread blocked inside XLA runs no signal handler)."""
+    leaves = [x for x in jax.tree.leaves(tree) if isinstance(x, jax.Array)]
+    while not all(x.is_ready() for x in leaves):
+        if interrupt is not None:
+            interrupt.poll()
+        time.sleep(poll_s)
+    if interrupt is not None:
+        interrupt.poll()
+    return tree
+
+
+@dataclass
+class Hooks:
+    """What a run and a sweep do differently in the loop."""
+    check: Callable[[dict, int], bool]            # (chunk metrics on the host, env steps before it) -> go on?
+    evaluate: Callable[[Any, int], None]          # (runner state, env steps)
+    show: Callable[[dict, int, float, str], None]  # (chunk metrics, env steps, env steps/s, ETA text)
+    save: Callable[[Any, int, int], None] | None = None  # (runner state, env steps, chunks done); None: never
+
+
+def run_chunks(trainer, chunk: Callable, state, done_chunks: int, hooks: Hooks, evals: Cadence,
+               saves: Cadence | None, interrupt: Interrupt, get: Callable = jax.device_get,
+               any_process: Callable[[bool], bool] = bool, hp: tuple = (), num_seeds: int = 1, stop_after_chunks: int | None = None):
+    """Runs chunks from `done_chunks` to the end of the run. Evaluates when `evals` is due and at the
+    end; saves (when `hooks.save`) when `saves` is due, at the end and when stopped. `get` brings the
+    chunk's metrics to the host and `any_process` tells whether any process was interrupted
+    (`SeedPlacement.get` and `.any_process`: several processes stop together). `stop_after_chunks` acts
+    like a Ctrl-C after that many chunks of this call (tests). Returns (state, done_chunks, status)."""
+    eta = Eta()
+    total = trainer.num_chunks * trainer.steps_per_chunk
+    env_steps = done_chunks * trainer.steps_per_chunk
+    status, this_call = EXIT_OK, 0
+
+    def timed_eval(state, steps):
+        t0 = time.time()
+        hooks.evaluate(state, steps)
+        eta.add_eval(time.time() - t0)
+        evals.done()
+
+    while done_chunks < trainer.num_chunks:
+        t0 = time.time()
+        state, m = chunk(state, *hp)
+        m = get(wait(m, interrupt))
+        dt = time.time() - t0
+        if not hooks.check(m, env_steps):
+            status = EXIT_NONFINITE
+            break
+        done_chunks, this_call = done_chunks + 1, this_call + 1
+        prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
+        eta.add_chunk(dt, learning=int(np.min(m["learn_iters"])) >= trainer.iters_per_chunk)
+        final = done_chunks == trainer.num_chunks
+        if final or evals.due(prev, env_steps):
+            timed_eval(state, env_steps)
+        interrupt.poll()
+        stop = any_process(interrupt.requested) or (stop_after_chunks is not None and this_call >= stop_after_chunks)
+        if hooks.save is not None and (final or stop or saves.due(prev, env_steps)):
+            with interrupt.saving():
+                hooks.save(state, env_steps, done_chunks)
+            saves.done()
+            interrupt.newest = f"env step {env_steps:,}"
+        interrupt.next_stop = f"after the running chunk (about {duration(dt)})"
+        sps = trainer.steps_per_chunk * num_seeds / dt  # env steps/s of all seeds in this chunk
+        hooks.show(m, env_steps, sps, eta.text(trainer.num_chunks - done_chunks,
+                                                evals.remaining(env_steps, total)))
+        if stop and not final:
+            status = EXIT_INTERRUPTED
+            break
+    return state, done_chunks, status

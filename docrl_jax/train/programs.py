@@ -1,0 +1,167 @@
+"""The compiled programs of a run (init, chunk, evaluate), built for the devices the seeds are split
+over and compiled once per process; and JAX's persistent compilation cache, which makes the next
+process skip compiling too.
+
+On one device the programs vmap over the seeds (one seed: the unbatched program on a seed axis of
+size 1, because under vmap a per-seed `lax.cond` becomes a select that computes both branches, so
+the delayed actor update and the pre-learning phase would cost a full update on every step). On
+several devices (train.devices, docrl_jax.sharding) shard_map gives each device its block of seeds;
+every input and output keeps the seed axis, sharded over the 'seed' mesh axis.
+
+traced=True (sweeps): init(keys, total, hp) and chunk(state, hp) also take the agent's
+hyperparameters (`algorithms.HParams`, one float32 per seed row), so rows that differ only in them
+run in one program; the config's own values of those fields are then unused (and normalised away,
+so one compilation serves any such values). The evaluation reads no HParams: a sweep and a plain
+run of the same shapes share it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax.sharding import NamedSharding, PartitionSpec
+
+from docrl_jax import sharding
+from docrl_jax.algorithms.common import HParams, hparams_neutral
+from docrl_jax.config import Config
+from docrl_jax.train.trainer import make_trainer
+
+_EVAL_SALT = 0x5EA1
+
+
+# ------------------------------------------------------------------ the persistent compilation cache
+def default_compile_cache() -> str:
+    env = os.environ.get("DOCRL_JAX_COMPILE_CACHE")
+    if env:
+        return env
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "docrl_jax", "jax")
+
+
+def enable_compile_cache(path: str | None) -> str | None:
+    """Turns on JAX's persistent compilation cache in `path` (None: the default; 'off': disabled).
+    Returns the folder used, or None. Programs that compile in under a second are not stored."""
+    path = default_compile_cache() if path is None else path
+    if path.lower() in ("off", "none", ""):
+        return None
+    os.makedirs(path, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    return path
+
+
+def device_line() -> str:
+    """What the run is on, for the console: 'GPU: NVIDIA H100 80GB HBM3 (1 device)' or a CPU warning."""
+    devs = jax.devices()
+    if devs[0].platform == "cpu":
+        return (f"CPU ({os.cpu_count()} cores): no GPU found, training will be slow; the packaged defaults "
+                f"are sized for one GPU (see the ETA)")
+    return f"{devs[0].platform.upper()}: {devs[0].device_kind} ({len(devs)} device{'s' if len(devs) > 1 else ''})"
+
+
+def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
+    """Keys of the evaluation at `env_steps`: a function of seed and step only, so a resumed run
+    evaluates on exactly the episodes an uninterrupted one would."""
+    return jnp.stack([jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(s), _EVAL_SALT), env_steps)
+                      for s in seeds])
+
+
+# ------------------------------------------------------------------ the programs
+class Programs(NamedTuple):
+    init: Callable        # (keys (S, 2), total env steps, [hp]) -> RunnerState stacked over seeds
+    chunk: Callable       # (RunnerState, [hp]) -> (RunnerState, chunk metrics); donates its state
+    evaluate: Callable    # (actor params stacked over seeds, keys (S, 2)) -> per-seed eval metrics
+    state_shape: Any      # the RunnerState's shapes (what a checkpoint is restored into)
+
+
+def program_config(config: Config, traced: bool = False) -> Config:
+    """The config with every field that does not shape the compiled programs set to a constant, so
+    runs that differ only in them (name, seeds, length, cadences; with `traced` the HParams) share
+    one compilation: the run length is a runner-state field and the seed keys are arguments."""
+    train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
+                                keep_checkpoints=1, devices=0, eval_trained_actor=False,
+                                eval_every_minutes=1.0, checkpoint_every_minutes=1.0)
+    agent = hparams_neutral(config.agent) if traced else config.agent
+    return dataclasses.replace(config, name="run", train=train, agent=agent)
+
+
+def hparams_shape(num_rows: int, config: Config):
+    """Shapes of the traced programs' `hp` argument: one float32 per seed row and HParams leaf."""
+    return jax.tree.map(lambda _: jax.ShapeDtypeStruct((num_rows,), jnp.float32),
+                        HParams.from_agent_config(config.agent))
+
+
+# The one memo of compiled programs, by (program config, devices, what): a resume or a second run
+# of the same shapes in one process compiles nothing.
+_COMPILED: dict = {}
+
+
+def compile_programs(config: Config, devices: tuple | None = None, traced: bool = False) -> tuple[Programs, float]:
+    """The run's programs for `devices` (the tuple from `sharding.seed_devices`; None resolves
+    train.devices here, for callers without a run's placement), compiled ahead of time, all at once in threads (XLA compiles them in parallel, which shortens start-up). Returns
+    them and the seconds this call spent compiling (0 when memoised)."""
+    devices = sharding.seed_devices(config.train)[0] if devices is None else devices
+    config = program_config(config, traced)
+    key, eval_key = (config, devices, traced), (program_config(config, True), devices, "evaluate")
+    if key in _COMPILED and eval_key in _COMPILED:
+        return _COMPILED[key], 0.0
+    init, chunk, evaluate = _jitted(config, devices, traced)
+    n = config.train.num_seeds
+    keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
+    total = jax.ShapeDtypeStruct((), jnp.int32)
+    hp = (hparams_shape(n, config),) if traced else ()
+    state_shape = jax.eval_shape(init, keys, total, *hp)
+    jobs = {"init": lambda: init.lower(keys, total, *hp).compile(),
+            "chunk": lambda: chunk.lower(state_shape, *hp).compile()}
+    if eval_key not in _COMPILED:
+        jobs["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys).compile()
+    t0 = time.time()
+    with ThreadPoolExecutor(len(jobs)) as pool:
+        done = {name: pool.submit(job) for name, job in jobs.items()}
+        compiled = {name: f.result() for name, f in done.items()}
+    if "evaluate" in compiled:
+        _COMPILED[eval_key] = compiled["evaluate"]
+    _COMPILED[key] = Programs(compiled["init"], compiled["chunk"], _COMPILED[eval_key], state_shape)
+    return _COMPILED[key], time.time() - t0
+
+
+def _jitted(config: Config, devices: tuple, traced: bool):
+    """init, chunk and evaluate over the seed axis, jitted (not yet compiled) for `devices`."""
+    trainer = make_trainer(config)
+    batched = config.train.num_seeds // len(devices) > 1   # seeds per device
+    squeeze = lambda tree: jax.tree.map(lambda x: x[0], tree)  # noqa: E731
+    expand = lambda tree: jax.tree.map(lambda x: x[None], tree)  # noqa: E731
+    if batched:
+        init = jax.vmap(trainer.init_total, (0, None, 0) if traced else (0, None))
+        chunk = jax.vmap(trainer.chunk)
+        evaluate = jax.vmap(trainer.evaluate)
+    else:  # hp: () for a plain run (the config's constants), (hp,) with a seed axis when traced
+        init = lambda keys, total, *hp: expand(trainer.init_total(keys[0], total, *squeeze(hp)))  # noqa: E731
+        chunk = lambda state, *hp: expand(trainer.chunk(squeeze(state), *squeeze(hp)))  # noqa: E731
+        evaluate = lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))  # noqa: E731
+    seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
+    hp = (seeds,) if traced else ()
+    return (_over_seeds(init, devices, (seeds, whole, *hp)),
+            _over_seeds(chunk, devices, (seeds, *hp), donate_argnums=0),
+            _over_seeds(evaluate, devices, (seeds, seeds)))
+
+
+def _over_seeds(f, devices: tuple, in_specs: tuple, **jit_kwargs):
+    """f jitted for `devices`. On several, shard_map gives each device its block of seeds and runs f
+    on it alone (no communication); every output keeps the seed axis, sharded the same way. The one
+    place multi-device programs are built, so the partitioner workaround applies to all of them."""
+    if len(devices) == 1:
+        return jax.jit(f, **jit_kwargs)
+    sharding.use_gspmd_partitioner()
+    mesh = sharding.SeedPlacement(devices).mesh
+    seeds = PartitionSpec(sharding.SEED_AXIS)
+    return jax.jit(jax.shard_map(f, mesh=mesh, in_specs=in_specs, out_specs=seeds, check_vma=False),
+                   in_shardings=tuple(NamedSharding(mesh, spec) for spec in in_specs),
+                   out_shardings=NamedSharding(mesh, seeds), **jit_kwargs)

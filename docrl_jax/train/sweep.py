@@ -1,0 +1,452 @@
+"""`python -m docrl_jax.sweep`: every combination of a hyperparameter grid x seeds, with as few
+compiled programs as the grid allows.
+
+    python -m docrl_jax.sweep --config td3_lstm --grid agent.actor_lr=1e-4,3e-4,1e-3 \\
+        --grid agent.tau=0.005,0.01 --seeds 3 --run-dir runs/sweep
+
+How it runs. The agent's hyperparameters that shape no array (`TRACED_KEYS`: learning rates, tau,
+gamma, the noise scales, lr_end_scale, policy_average_tau, SAC's target entropy and initial
+temperature) are inputs of the compiled program (`algorithms.HParams`, one float32 per row), so all
+combinations that differ only in them run as ONE program whose leading axis is combination x seed:
+the `train.num_seeds` axis of a plain run, vmapped and split over the devices exactly as seeds are
+(`docrl_jax.train.programs`, traced=True). Every other key (network widths,
+num_envs, batch_size, seq_len, env parameters such as reward scales, run length, ...) is compiled
+into the program: combinations that differ in such a key form separate groups, run one after
+another, each one program. Row r = c x seeds + s of a group trains combination c with seed
+train.seed + s, on exactly the episodes and PRNG keys a plain run of that combination's config
+would use (same seeds for every combination: differences between them are not seed noise).
+
+Reward scales (`env.progress_reward_scale`, ...) are EnvParams fields closed over by the compiled
+environment step, not traced: they can be swept, as separate programs.
+
+Outputs in --run-dir:
+    sweep.json              the grid, the combinations and their groups (written before training)
+    c<NN>/config.yaml       combination NN's resolved config (num_seeds = --seeds)
+    c<NN>/metrics.csv       its rows in the metrics.csv format of a plain run, plus `combination`
+                            and one column per swept key; wall_time_s counts from its group's start
+                            (compile included) while sharing the devices with the group's other rows
+    sweep.csv, sweep.md     per combination, mean ± std over seeds: time to 90 % success in both
+                            paper directions, final success (rate, A-W, W-A), final evaluation return
+    curves_<key>.png        success against env steps, one line per value of the swept key, mean
+                            over seeds and the other keys' values
+
+The rows run through the same chunk loop as a plain run (docrl_jax.train.loop: evaluation cadence,
+Ctrl-C finishes the running chunk and writes the table of what was evaluated). Not supported:
+checkpoints and --resume (a sweep is restarted from scratch; --resume is an error), several
+processes (--distributed), TensorBoard. A row whose losses become non-finite keeps running (its
+rows are independent of the others); the table marks it as diverged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import itertools
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from docrl_jax import memory, runs, sharding
+from docrl_jax.checkpoint import os_error_line
+from docrl_jax.algorithms.common import HPARAM_KEYS, HParams, hparams_neutral
+from docrl_jax.config import Config, field_docs, load_config, parse_overrides, to_yaml, validate
+from docrl_jax.errors import ConfigError, RunDirError
+from docrl_jax.evaluate.tables import mean_std, plus_minus
+from docrl_jax.train import metrics
+from docrl_jax.train.loop import EXIT_CONFIG, EXIT_OK, Cadence, Hooks, Interrupt, make_console, run_chunks
+from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
+from docrl_jax.train.trainer import make_trainer
+
+SWEEP_FILE, TABLE_CSV, TABLE_MD = runs.SWEEP_FILE, "sweep.csv", "sweep.md"
+TRACED_KEYS = tuple(f"agent.{k}" for k in HPARAM_KEYS)
+NOT_SWEEPABLE = {
+    "name": "the sweep names its combinations c00, c01, ...",
+    "train.seed": "the first seed; every combination runs seeds train.seed .. + --seeds - 1",
+    "train.num_seeds": "use --seeds",
+    "train.devices": "where the rows run, not what they learn (set it with --set)",
+    "train.checkpoint_every": "sweeps write no checkpoints",
+    "train.keep_checkpoints": "sweeps write no checkpoints",
+    "train.track_best_policy": "sweeps write no checkpoints (the best policy lives in them)",
+    "train.eval_trained_actor": "set it for the whole sweep with --set",
+}
+SUCCESS_LEVEL = 0.9
+
+
+# ------------------------------------------------------------------------------------ the grid
+def sweepable_keys() -> list[str]:
+    """Every config key a grid may name: the traced ones and the compiled-in ones."""
+    from docrl_jax.envs import param_docs
+    keys = set(field_docs()) - {"env.overrides"} | {f"env.{k}" for k in param_docs() if k != "scenario"}
+    return sorted(keys - set(NOT_SWEEPABLE))
+
+
+def _split_values(text: str) -> list[str]:
+    """'1e-4,3e-4' -> ['1e-4', '3e-4']; commas inside brackets stay ('[64,64],[128,128]')."""
+    parts, depth, cur = [], 0, ""
+    for ch in text:
+        depth += (ch in "[(") - (ch in "])")
+        if ch == "," and depth == 0:
+            parts.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    return parts + [cur]
+
+
+def _number(value):
+    """YAML 1.1 reads '1e-4' as text; the config accepts it as a number, so the grid does too."""
+    if isinstance(value, str):
+        try:
+            return float(value)
+        except ValueError:
+            pass
+    return value
+
+
+def parse_grid(items: list[str]) -> dict[str, list]:
+    """['agent.tau=0.005,0.01', ...] -> {'agent.tau': [0.005, 0.01], ...} in the given order. Raises
+    ConfigError for a malformed item, a repeated key, or a key that is unknown or not sweepable
+    (naming the valid keys), before anything is built or compiled."""
+    grid: dict[str, list] = {}
+    valid = sweepable_keys()
+    for item in items:
+        if "=" not in item:
+            raise ConfigError(f"--grid {item!r}: expected section.key=value1,value2,...")
+        key, text = (x.strip() for x in item.split("=", 1))
+        if key in grid:
+            raise ConfigError(f"--grid {key}: given twice; list all its values in one --grid")
+        if key in NOT_SWEEPABLE:
+            raise ConfigError(f"--grid {key}: not sweepable ({NOT_SWEEPABLE[key]}); traced keys (one program for "
+                              f"all their values): {list(TRACED_KEYS)}; any other key of {valid} runs one "
+                              f"program per value")
+        if key not in valid:
+            raise ConfigError(f"--grid {key}: unknown key; traced keys (one program for all their values): "
+                              f"{list(TRACED_KEYS)}; compiled-in keys (one program per value): "
+                              f"{[k for k in valid if k not in TRACED_KEYS]}")
+        try:
+            values = [_number(yaml.safe_load(v)) for v in _split_values(text)]
+        except yaml.YAMLError as e:
+            raise ConfigError(f"--grid {item!r}: a value is not valid YAML ({e})") from None
+        if not values or any(v is None for v in values):
+            raise ConfigError(f"--grid {item!r}: empty value; expected section.key=value1,value2,...")
+        if len({json.dumps(v) for v in values}) != len(values):
+            raise ConfigError(f"--grid {item!r}: a value is repeated")
+        grid[key] = values
+    if not grid:
+        raise ConfigError("no --grid given: at least one --grid section.key=value1,value2,...")
+    return grid
+
+
+@dataclasses.dataclass(frozen=True)
+class Combination:
+    index: int
+    values: dict            # swept key -> value
+    config: Config          # the combination's resolved config (num_seeds = --seeds)
+
+    @property
+    def name(self) -> str:
+        return f"c{self.index:02d}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Group:
+    """Combinations that share one compiled program: `config` has num_seeds = rows (combinations x
+    seeds) and the HParams fields at their schema defaults (the rows' own values are traced);
+    `placement` is where its rows run (resolved once, when the sweep is planned)."""
+    config: Config
+    combinations: tuple
+    placement: sharding.SeedPlacement
+
+
+def plan(config: str, sets: list[str], grid: dict[str, list], seeds: int | None,
+         check_memory: bool = True) -> tuple[list[Combination], list[Group]]:
+    """Builds and validates every combination's config and the groups of one program each; raises
+    ConfigError (a bad value, too many rows for the devices or their memory) before any compile."""
+    base = parse_overrides(sets)
+    combos = []
+    for i, values in enumerate(itertools.product(*grid.values())):
+        chosen = dict(zip(grid, values))
+        overrides = {**base, **chosen}
+        if seeds is not None:
+            overrides["train.num_seeds"] = seeds
+        try:
+            cfg = load_config(config, overrides)
+        except ConfigError as e:
+            raise ConfigError(f"combination {', '.join(f'{k}={v}' for k, v in chosen.items())}: {e}") from None
+        combos.append(Combination(i, chosen, cfg))
+    by_program: dict[Config, list[Combination]] = {}
+    for c in combos:
+        by_program.setdefault(dataclasses.replace(c.config, agent=hparams_neutral(c.config.agent)), []).append(c)
+    groups = []
+    for shared, members in by_program.items():
+        rows = len(members) * shared.train.num_seeds
+        gcfg = dataclasses.replace(shared, name=members[0].config.name,
+                                   train=dataclasses.replace(shared.train, num_seeds=rows))
+        validate(gcfg)
+        placement = sharding.seed_placement(gcfg.train)  # ConfigError for too many rows for the devices
+        if check_memory:
+            memory.check_memory(gcfg, placement.devices)
+        groups.append(Group(gcfg, tuple(members), placement))
+    return combos, groups
+
+
+# ------------------------------------------------------------------------------------ running
+def run_sweep(combos: list[Combination], groups: list[Group], grid: dict[str, list], run_dir, console=None) -> int:
+    """Trains every group in turn into run_dir; writes the table and figures. Returns an exit code."""
+    console = console or make_console()
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / SWEEP_FILE).write_text(json.dumps({
+        "grid": grid, "traced_keys": [k for k in grid if k in TRACED_KEYS],
+        "combinations": [{"name": c.name, "values": c.values} for c in combos],
+        "groups": [[c.name for c in g.combinations] for g in groups]}, indent=1))
+    for c in combos:
+        d = run_dir / c.name
+        d.mkdir(exist_ok=True)
+        (d / runs.CONFIG_FILE).write_text(to_yaml(c.config))
+        metrics.write_header(d / runs.METRICS_FILE, _columns(grid))
+    status = EXIT_OK
+    diverged: dict[str, list] = {}
+    with Interrupt(console, action="write the table") as interrupt:
+        for i, group in enumerate(groups):
+            names = ", ".join(c.name for c in group.combinations)
+            console.print(f"[bold]group {i + 1}/{len(groups)}[/] ({names}): {group.config.train.num_seeds} rows "
+                          f"in one program")
+            status = _run_group(group, grid, run_dir, console, interrupt, diverged)
+            if status != EXIT_OK:
+                console.print("interrupted: the table covers the evaluations written so far")
+                break
+    write_summary(run_dir, grid, diverged)
+    console.print(f"table: {run_dir / TABLE_MD}")
+    return status
+
+
+def _columns(grid) -> list[str]:
+    return metrics.METRIC_COLUMNS + ["combination", *grid]
+
+
+def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Interrupt,
+               diverged: dict[str, list]) -> int:
+    """One group's program through the chunk loop: evaluations at step 0, when due and at the end.
+    Adds {combination name: [seeds whose losses became non-finite]} to `diverged`."""
+    import jax
+
+    start = time.time()
+    cfg, t, placement = group.config, group.config.train, group.placement
+    per = group.combinations[0].config.train.num_seeds
+    rows = [(c, t.seed + s) for c in group.combinations for s in range(per)]
+    seeds = [s for _, s in rows]
+    if placement.note:
+        console.print(f"[yellow]note:[/] {placement.note}")
+    trainer = make_trainer(cfg)
+    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
+    hp = jax.tree.map(placement.put_seeds, HParams.stack([HParams.from_agent_config(c.config.agent)
+                                                          for c, _ in rows]))
+    programs, compile_s = compile_programs(cfg, placement.devices, traced=True)
+    console.print(f"compiled in {compile_s:.1f} s")
+    total = placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32))
+    state = programs.init(keys, total, hp)
+    pending = metrics.empty_pending(len(rows))
+    trained_actor = [c.config.train.eval_trained_actor and c.config.agent.policy_average_tau < 1.0 for c, _ in rows]
+
+    def evaluate(state, steps: int):
+        nonlocal pending
+        ekeys = placement.put_seeds(np.asarray(eval_keys(seeds, steps)))
+        ev = placement.get(programs.evaluate(state.agent.actor_average, ekeys))
+        trained = placement.get(programs.evaluate(state.agent.actor, ekeys)) if any(trained_actor) else {}
+        out = metrics.eval_rows(cfg, seeds, steps, time.time() - start, pending, ev, trained,
+                                placement.get(state.agent.updates))
+        for row, (c, _), wants in zip(out, rows, trained_actor):
+            if not wants:
+                for k in metrics.TRAINED_ACTOR_KEYS:
+                    row[f"trained_actor_{k}"] = math.nan
+            row.update({"combination": c.name, **{k: json.dumps(v) if isinstance(v, list) else v
+                                                  for k, v in c.values.items()}})
+        for c in group.combinations:
+            metrics.append_rows(run_dir / c.name / runs.METRICS_FILE,
+                                [r for r in out if r["combination"] == c.name], _columns(grid))
+        pending = metrics.empty_pending(len(rows))
+        mean = {c.name: metrics.eval_success([r for r in out if r["combination"] == c.name])
+                for c in group.combinations}
+        console.print(f"{steps:,} env steps, {time.time() - start:.0f} s: eval success "
+                      + "  ".join(f"{n} {v:.2f}" for n, v in mean.items()))
+
+    def check(m: dict, steps_before: int) -> bool:
+        for i in np.flatnonzero(np.asarray(m["nonfinite_iter"]) >= 0):
+            c, s = rows[i]
+            if s not in diverged.setdefault(c.name, []):
+                diverged[c.name].append(s)
+                console.print(f"[bold red]non-finite loss[/] in {c.name} ({c.values}), seed {s}; its rows go on "
+                              f"(independent of the others) and the table marks it as diverged")
+        metrics.accumulate(pending, m)
+        return True  # a diverged row does not stop the others
+
+    hooks = Hooks(check=check, evaluate=evaluate, show=lambda *_: None)
+    evals = Cadence(t.eval_every, t.eval_every_minutes)
+    evaluate(state, 0)
+    evals.done()
+    _, _, status = run_chunks(trainer, programs.chunk, state, 0, hooks, evals, None, interrupt, get=placement.get,
+                              hp=(hp,), num_seeds=len(rows))
+    return status
+
+
+# ------------------------------------------------------------------------------------ the table
+def time_to_success(rows: dict[str, np.ndarray], level: float = SUCCESS_LEVEL) -> float:
+    """wall_time_s of the first evaluation with both paper directions >= level (NaN: not reached)."""
+    ok = (rows["success_air_to_water"] >= level) & (rows["success_water_to_air"] >= level)
+    return float(rows["wall_time_s"][np.argmax(ok)]) if ok.any() else math.nan
+
+
+def summarise(run_dir, grid: dict) -> list[dict]:
+    """One record per combination (sweep.json order) from its metrics.csv, seeds pooled."""
+    from docrl_jax.evaluate.curves import read_metrics
+    run_dir = Path(run_dir)
+    meta = json.loads((run_dir / SWEEP_FILE).read_text())
+    out = []
+    for c in meta["combinations"]:
+        by_seed = read_metrics(run_dir / c["name"] / runs.METRICS_FILE)
+        rec = {"combination": c["name"], **{k: c["values"][k] for k in grid}, "seeds": len(by_seed)}
+        last = [{k: v[-1] for k, v in s.items()} for s in by_seed.values()]
+        times = [time_to_success(s) for s in by_seed.values()]
+        rec["seeds_reached_90"] = int(np.sum(np.isfinite(times)))
+        rec["time_to_90_s_mean"], rec["time_to_90_s_std"] = mean_std(times)
+        pairs = bool(last) and all(np.isfinite(r["success_air_to_water"]) for r in last)
+        rec["paper_pairs"] = pairs
+        for key, col in (("success", "success_rate"), ("success_a2w", "success_air_to_water"),
+                         ("success_w2a", "success_water_to_air"), ("return", "episode_return")):
+            rec[f"final_{key}_mean"], rec[f"final_{key}_std"] = mean_std([r[col] for r in last])
+        rec["final_env_steps"] = int(max((r["env_steps"] for r in last), default=0))
+        out.append(rec)
+    return out
+
+
+def write_summary(run_dir, grid: dict, diverged: dict | None = None) -> list[Path]:
+    """sweep.csv, sweep.md and one learning-curve figure per swept key."""
+    run_dir = Path(run_dir)
+    recs = summarise(run_dir, grid)
+    diverged = diverged or {}
+    for r in recs:
+        r["diverged_seeds"] = " ".join(map(str, diverged.get(r["combination"], [])))
+    with open(run_dir / TABLE_CSV, "w", newline="") as fh:
+        w = csv.DictWriter(fh, list(recs[0]) if recs else ["combination"])
+        w.writeheader()
+        for r in recs:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else json.dumps(v) if isinstance(v, list) else v)
+                        for k, v in r.items()})
+    head = ["combination", *grid, "seeds", "time to 90 % both ways (s)", "final success", "final A-W",
+            "final W-A", "final eval return"]
+    lines = [f"# Sweep: {', '.join(f'{k} in {v}' for k, v in grid.items())}", "",
+             "Mean ± std over seeds. Time to 90 %: wall-clock seconds from the start of the combination's "
+             "program (compile included, devices shared with the other rows of its group) to the first "
+             "evaluation with success_air_to_water and success_water_to_air both >= 0.9, over the seeds that "
+             "reached it. Final: the last evaluation.", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in recs:
+        if not r["paper_pairs"]:
+            t90 = "n/a (train.eval_paper_pairs false)"
+        elif r["seeds_reached_90"] == 0:
+            t90 = "not reached"
+        else:
+            t90 = plus_minus(r["time_to_90_s_mean"], r["time_to_90_s_std"], ".0f")
+            if r["seeds_reached_90"] < r["seeds"]:
+                t90 += f" ({r['seeds_reached_90']}/{r['seeds']} seeds; the others: not reached)"
+        name = r["combination"] + (f" (diverged: seed {r['diverged_seeds']})" if r["diverged_seeds"] else "")
+        cells = [name, *(str(r[k]) for k in grid), str(r["seeds"]), t90,
+                 plus_minus(r["final_success_mean"], r["final_success_std"], ".2f"),
+                 plus_minus(r["final_success_a2w_mean"], r["final_success_a2w_std"], ".2f"),
+                 plus_minus(r["final_success_w2a_mean"], r["final_success_w2a_std"], ".2f"),
+                 plus_minus(r["final_return_mean"], r["final_return_std"], ".1f")]
+        lines.append("| " + " | ".join(cells) + " |")
+    (run_dir / TABLE_MD).write_text("\n".join(lines) + "\n")
+    return [run_dir / TABLE_CSV, run_dir / TABLE_MD, *plot_sweep_curves(run_dir, grid)]
+
+
+def plot_sweep_curves(run_dir, grid: dict) -> list[Path]:
+    """curves_<key>.png per swept key: success (and the paper pairs when evaluated) against env
+    steps, one line per value, mean ± std over seeds and the other keys' values."""
+    from docrl_jax.evaluate.curves import aggregate_curves, plt, read_metrics
+    run_dir = Path(run_dir)
+    meta = json.loads((run_dir / SWEEP_FILE).read_text())
+    series = {c["name"]: list(read_metrics(run_dir / c["name"] / runs.METRICS_FILE).values())
+              for c in meta["combinations"]}
+    metrics = ["success_rate"] + [m for m in ("success_air_to_water", "success_water_to_air")
+                                  if any(np.isfinite(s[m]).any() for ss in series.values() for s in ss)]
+    paths = []
+    for key in grid:
+        fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4), squeeze=False)
+        for ax, metric in zip(axes[0], metrics):
+            for i, value in enumerate(grid[key]):
+                pooled = [(s["env_steps"], s[metric]) for c in meta["combinations"]
+                          if json.dumps(c["values"][key]) == json.dumps(value) for s in series[c["name"]]]
+                x, mean, std, n = aggregate_curves(pooled)
+                if n == 0:
+                    continue
+                ax.plot(x, mean, color=f"C{i}", label=f"{key}={value} ({n} run{'s' * (n != 1)})")
+                ax.fill_between(x, mean - std, mean + std, color=f"C{i}", alpha=0.2)
+            ax.set(xlabel="env steps (per seed)", ylabel=metric.replace("_", " "), ylim=(-0.03, 1.03))
+            ax.grid(alpha=0.3)
+        axes[0, 0].legend(fontsize=8)
+        fig.suptitle(f"Sweep over {key}: mean ± std over seeds and the other keys")
+        fig.tight_layout()
+        path = run_dir / f"curves_{key}.png"
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+# ------------------------------------------------------------------------------------ command line
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m docrl_jax.sweep", description=__doc__.split("\n\n")[0])
+    p.add_argument("--config", help="packaged config name or a YAML path (the base of every combination)")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one base config value (YAML scalar); repeatable")
+    p.add_argument("--grid", action="append", default=[], metavar="SECTION.KEY=V1,V2,...",
+                   help="values of one swept key; repeatable (every combination of all grids runs)")
+    p.add_argument("--seeds", type=int, default=None, help="seeds per combination (default: train.num_seeds)")
+    p.add_argument("--run-dir", help="output directory (default runs/sweep-<name>-<UTC time>)")
+    p.add_argument("--resume", action="store_true", help="not supported for sweeps (an error)")
+    p.add_argument("--compile-cache", default=None, metavar="DIR|off",
+                   help="JAX persistent compilation cache folder, as for python -m docrl_jax.train")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    console = make_console()
+    try:
+        if args.resume:
+            raise RunDirError("sweeps write no checkpoints and cannot be resumed; start the sweep again in a new "
+                              "--run-dir (or resume single runs with python -m docrl_jax.train)")
+        if not args.config:
+            raise ConfigError("--config is required (a packaged name such as td3_lstm, or a YAML path)")
+        if args.seeds is not None and args.seeds < 1:
+            raise ConfigError(f"--seeds {args.seeds}: must be >= 1")
+        grid = parse_grid(args.grid)
+        run_dir = Path(args.run_dir) if args.run_dir else \
+            Path("runs") / f"sweep-{Path(args.config).stem}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
+        runs.check_fresh(run_dir)
+        combos, groups = plan(args.config, args.set, grid, args.seeds)
+    except (ConfigError, RunDirError) as e:
+        console.print(f"[bold red]error:[/] {e}")
+        return EXIT_CONFIG
+    cache = enable_compile_cache(args.compile_cache)
+    console.print(f"[bold]sweep:[/] {len(combos)} combinations x {combos[0].config.train.num_seeds} seeds in "
+                  f"{len(groups)} program{'s' * (len(groups) > 1)}; traced keys: "
+                  f"{[k for k in grid if k in TRACED_KEYS] or 'none'}; run directory {run_dir}")
+    console.print(f"[bold]device:[/] {device_line()}")
+    console.print(f"[bold]compilation cache:[/] {cache or 'off'}")
+    try:
+        return run_sweep(combos, groups, grid, run_dir, console)
+    except OSError as e:
+        console.print(f"[bold red]error:[/] {os_error_line(e)}")
+        return EXIT_CONFIG
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
