@@ -61,3 +61,31 @@ def test_run_dir_error_lives_beside_config_error():
     from docrl_jax import errors
     assert issubclass(errors.RunDirError, ValueError) and issubclass(errors.ConfigError, ValueError)
     assert not issubclass(errors.RunDirError, errors.ConfigError)
+
+
+def test_config_and_env_params_share_one_schema_helper():
+    import dataclasses
+
+    from docrl_jax import config, errors, schema
+    from docrl_jax.envs import EnvParams, make, param_docs
+
+    @dataclasses.dataclass(frozen=True)
+    class Example:
+        size: int = schema.documented(4, "How many.", choices=(4, 8))
+        speed: float = schema.documented(0.5, "How fast (m/s).")
+
+    f = dataclasses.fields(Example)[0]
+    assert Example().size == 4 and f.metadata == {"doc": "How many.", "choices": (4, 8)}
+    assert schema.field_docs(Example) == {"size": "How many.", "speed": "How fast (m/s)."}
+    assert schema.field_docs(Example, "sec") == {"sec.size": "How many.", "sec.speed": "How fast (m/s)."}
+    # the two public doc collectors read the same helper
+    assert param_docs() == schema.field_docs(EnvParams) and "wind" in param_docs()
+    docs = config.field_docs()
+    assert schema.field_docs(config.TrainConfig, "train").items() <= docs.items() and "name" in docs
+    assert "env" not in docs and "train.eval_every_minutes" in docs
+    # one error format, key first, whichever error type
+    with pytest.raises(errors.ConfigError, match=r"^train.x=-1: must be >= 0$"):
+        schema.fail("train.x", -1, "must be >= 0", error=errors.ConfigError)
+    with pytest.raises(ValueError, match=r"^env parameter wind='yes': must be a bool"):
+        make(1, wind="yes")
+    assert config.ConfigError is errors.ConfigError

@@ -9,119 +9,127 @@ Sources: "orig" = the authors' released code (shared/research/original-code.md, 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
+from docrl_jax import schema
+from docrl_jax.schema import documented
+
 Vec3 = tuple[float, float, float]
-
-
-def _doc(text: str, default: Any) -> Any:
-    return field(default=default, metadata={"doc": text})
 
 
 @dataclass(frozen=True)
 class EnvParams:
     # ---------------------------------------------------------------- task
-    scenario: int = _doc("Tank layout: 1 empty, 2 four risers, 3 fifteen obstacles (orig 1.3).", 2)
-    control_dt: float = _doc("Seconds per agent step: 5 Hz, the rate of the original's sensors (orig 2.4).", 0.2)
-    physics_dt: float = _doc("Physics substep in seconds; must divide control_dt and be <= 0.01 "
-                             "(the original Gazebo max_step_size).", 0.01)
-    substep_unroll: int | None = _doc(
+    scenario: int = documented(2, "Tank layout: 1 empty, 2 four risers, 3 fifteen obstacles (orig 1.3).")
+    control_dt: float = documented(0.2, "Seconds per agent step: 5 Hz, the rate of the original's sensors (orig 2.4).")
+    physics_dt: float = documented(0.01, "Physics substep in seconds; must divide control_dt and be <= 0.01 "
+                                         "(the original Gazebo max_step_size).")
+    substep_unroll: int | None = documented(None,
         "Speed only: physics substeps XLA unrolls per loop iteration (same results for any value). None = 5 "
-        "on GPU/TPU (+11 % at 65,536 envs on an H200, benchmarks/results/) and 1 on CPU (faster there).", None)
-    max_episode_steps: int = _doc("Steps before truncation (paper: 500).", 500)
-    arrival_distance: float = _doc("Goal reached when the 3-D distance is below this (paper c_d = 0.5 m).", 0.5)
-    collision_distance: float = _doc("Collision when the smallest range is below this (paper c_o = 0.5 m).", 0.5)
-    reward_arrive: float = _doc("Reward on arrival (paper r_arrive).", 100.0)
-    reward_collide: float = _doc("Reward on collision or leaving the vertical bounds (paper r_collide).", -10.0)
-    reward_timeout: float = _doc("Reward when the step limit is reached (paper: r_collide at ep = 500).", -10.0)
-    progress_reward_scale: float = _doc("Dense shaping: scale * (previous distance - distance) per step, "
-                                        "for ablations. 0 = the paper's binary reward.", 0.0)
-    terminate_on_arrival: bool = _doc("End the episode on arrival (evaluation). False = sample a new goal and "
-                                      "go on from where the vehicle is (training, as in the paper).", False)
-    z_bounds: tuple[float, float] | None = _doc(
+        "on GPU/TPU (+11 % at 65,536 envs on an H200, benchmarks/results/) and 1 on CPU (faster there).")
+    max_episode_steps: int = documented(500, "Steps before truncation (paper: 500).")
+    arrival_distance: float = documented(0.5, "Goal reached when the 3-D distance is below this (paper c_d = 0.5 m).")
+    collision_distance: float = documented(0.5, "Collision when the smallest range is below this (paper c_o = 0.5 m).")
+    reward_arrive: float = documented(100.0, "Reward on arrival (paper r_arrive).")
+    reward_collide: float = documented(-10.0, "Reward on collision or leaving the vertical bounds (paper r_collide).")
+    reward_timeout: float = documented(-10.0, "Reward when the step limit is reached (paper: r_collide at ep = 500).")
+    progress_reward_scale: float = documented(0.0, "Dense shaping: scale * (previous distance - distance) per step, "
+                                                   "for ablations. 0 = the paper's binary reward.")
+    terminate_on_arrival: bool = documented(False,
+        "End the episode on arrival (evaluation). False = sample a new goal and "
+        "go on from where the vehicle is (training, as in the paper).")
+    z_bounds: tuple[float, float] | None = documented(None,
         "Vertical termination bounds (z_min, z_max). None = the original's (-1.1, 4.8), scenario 3 "
-        "(floor + 0.2, 4.8) (orig 1.2).", None)
+        "(floor + 0.2, 4.8) (orig 1.2).")
 
     # ---------------------------------------------------------------- starts and goals
-    start_water_fraction: float = _doc("Probability that a training start is underwater.", 0.5)
-    goal_water_fraction: float = _doc("Probability that a training goal is underwater (the original sampled "
-                                      "air goals only, orig 1.5, which cannot teach air-to-water).", 0.5)
-    goal_clearance: float = _doc("Starts and goals keep at least this distance (m) from every obstacle.", 1.0)
-    wall_margin: float = _doc("Starts and goals keep at least this distance (m) from the walls.", 0.6)
-    air_z_range: tuple[float, float] = _doc("Heights (m) of air starts/goals (orig goals: 0.5-3.9).", (0.5, 4.0))
-    water_z_range: tuple[float, float] | None = _doc(
+    start_water_fraction: float = documented(0.5, "Probability that a training start is underwater.")
+    goal_water_fraction: float = documented(0.5,
+        "Probability that a training goal is underwater (the original sampled "
+        "air goals only, orig 1.5, which cannot teach air-to-water).")
+    goal_clearance: float = documented(1.0, "Starts and goals keep at least this distance (m) from every obstacle.")
+    wall_margin: float = documented(0.6, "Starts and goals keep at least this distance (m) from the walls.")
+    air_z_range: tuple[float, float] = documented((0.5, 4.0), "Heights (m) of air starts/goals (orig goals: 0.5-3.9).")
+    water_z_range: tuple[float, float] | None = documented(None,
         "Depths (m) of underwater starts/goals. None = (z_min + 0.1, -0.3): the paper's evaluation "
-        "target sits at -1.0, 0.1 m above the bound.", None)
-    min_goal_distance: float = _doc("A sampled goal is at least this far (m) from the vehicle.", 1.0)
-    max_goal_distance: float = _doc("A sampled goal is at most this far (m) from the vehicle (curricula, easy "
-                                    "tests); the default 100 never binds in the 10 m tank.", 100.0)
+        "target sits at -1.0, 0.1 m above the bound.")
+    min_goal_distance: float = documented(1.0, "A sampled goal is at least this far (m) from the vehicle.")
+    max_goal_distance: float = documented(100.0,
+        "A sampled goal is at most this far (m) from the vehicle (curricula, easy "
+        "tests); the default 100 never binds in the 10 m tank.")
 
     # ---------------------------------------------------------------- sensors
-    lidar_fov_deg: float = _doc("LIDAR fan: beams at linspace(-fov/2, fov/2, 20) from body x (orig 3.1).", 270.0)
-    lidar_min_range: float = _doc("LIDAR minimum range (m), UST-10LX (orig 3.1). Documented only: "
-                                  "closer returns are reported as measured so collisions are seen.", 0.5)
-    lidar_max_range: float = _doc("LIDAR maximum range (m); no hit reads this (orig 3.1).", 10.0)
-    sonar_fov_deg: float = _doc("Sonar fan width; 20 beams at linspace(-45, 45, 20) (orig 3.2).", 90.0)
-    sonar_max_range: float = _doc("Sonar maximum range (m); no hit reads this (orig 3.2).", 20.0)
-    sensor_noise_std: float = _doc("Std (m) of Gaussian range noise; 0 = noiseless (orig: 0).", 0.0)
+    lidar_fov_deg: float = documented(270.0, "LIDAR fan: beams at linspace(-fov/2, fov/2, 20) from body x (orig 3.1).")
+    lidar_min_range: float = documented(0.5, "LIDAR minimum range (m), UST-10LX (orig 3.1). Documented only: "
+                                             "closer returns are reported as measured so collisions are seen.")
+    lidar_max_range: float = documented(10.0, "LIDAR maximum range (m); no hit reads this (orig 3.1).")
+    sonar_fov_deg: float = documented(90.0, "Sonar fan width; 20 beams at linspace(-45, 45, 20) (orig 3.2).")
+    sonar_max_range: float = documented(20.0, "Sonar maximum range (m); no hit reads this (orig 3.2).")
+    sensor_noise_std: float = documented(0.0, "Std (m) of Gaussian range noise; 0 = noiseless (orig: 0).")
 
     # ---------------------------------------------------------------- command mapping (orig 2.3, 4.2)
-    max_forward_speed: float = _doc("a0 = -1..1 maps to forward speed 0..this (m/s).", 0.25)
-    max_vertical_speed: float = _doc("a1 = -1..1 maps to vertical speed -this..this (m/s).", 0.25)
-    max_yaw_change: float = _doc("a2 = -1..1 maps to dpsi -this..this: heading offset of the horizontal "
-                                 "velocity (rad) and yaw-rate reference (rad/s), as the original bridge.", 0.25)
+    max_forward_speed: float = documented(0.25, "a0 = -1..1 maps to forward speed 0..this (m/s).")
+    max_vertical_speed: float = documented(0.25, "a1 = -1..1 maps to vertical speed -this..this (m/s).")
+    max_yaw_change: float = documented(0.25, "a2 = -1..1 maps to dpsi -this..this: heading offset of the horizontal "
+                                             "velocity (rad) and yaw-rate reference (rad/s), as the original bridge.")
 
     # ---------------------------------------------------------------- low-level controller (orig 2.3)
-    vel_p_gain: float = _doc("Velocity loop gain (1/s): Lee K_v 4.7 / mass 2.077.", 2.26)
-    vel_i_gain: float = _doc("Velocity integral gain (1/s^2). Not in the original (which drifted 0.1 m/s "
-                             "under its buoyancy); absorbs what the buoyancy and drag feed-forward miss "
-                             "(wind, model error).", 1.0)
-    vel_i_band: float = _doc("The integral only accumulates while |velocity error| < this (m/s): "
-                             "conditional anti-windup, so command steps do not overshoot.", 0.03)
-    vel_i_limit: float = _doc("Clamp of the integral term's acceleration (m/s^2), anti-windup.", 3.0)
-    max_tilt_deg: float = _doc("Largest commanded tilt of the thrust axis (deg).", 30.0)
-    att_gain: Vec3 = _doc("Attitude gains (N m/rad), RotorS Lee attitude_gain (orig 2.3).", (2.0, 2.3, 0.15))
-    rate_gain: Vec3 = _doc("Body-rate gains (N m s/rad), RotorS Lee angular_rate_gain (orig 2.3).",
-                           (0.4, 0.52, 0.18))
+    vel_p_gain: float = documented(2.26, "Velocity loop gain (1/s): Lee K_v 4.7 / mass 2.077.")
+    vel_i_gain: float = documented(1.0, "Velocity integral gain (1/s^2). Not in the original (which drifted 0.1 m/s "
+                                        "under its buoyancy); absorbs what the buoyancy and drag feed-forward miss "
+                                        "(wind, model error).")
+    vel_i_band: float = documented(0.03, "The integral only accumulates while |velocity error| < this (m/s): "
+                                         "conditional anti-windup, so command steps do not overshoot.")
+    vel_i_limit: float = documented(3.0, "Clamp of the integral term's acceleration (m/s^2), anti-windup.")
+    max_tilt_deg: float = documented(30.0, "Largest commanded tilt of the thrust axis (deg).")
+    att_gain: Vec3 = documented((2.0, 2.3, 0.15), "Attitude gains (N m/rad), RotorS Lee attitude_gain (orig 2.3).")
+    rate_gain: Vec3 = documented((0.4, 0.52, 0.18),
+        "Body-rate gains (N m s/rad), RotorS Lee angular_rate_gain (orig 2.3).")
 
     # ---------------------------------------------------------------- rotors (orig 2.2)
-    rotor_max_thrust_air: float = _doc("Per-rotor thrust limit in air (N): 8.54858e-6 * 1838^2.", 28.9)
-    rotor_max_thrust_water: float = _doc(
+    rotor_max_thrust_air: float = documented(28.9, "Per-rotor thrust limit in air (N): 8.54858e-6 * 1838^2.")
+    rotor_max_thrust_water: float = documented(28.9,
         "Per-rotor thrust limit in water (N). The same aerial rotors drive the vehicle underwater "
         "(orig 2.5). A torque-limited motor spins sqrt(rho_w/rho_a) ~ 29x slower in water and so "
-        "reaches the same thrust (thrust and torque both scale with rho*omega^2).", 28.9)
-    rotor_tau_up: float = _doc("Rotor thrust time constant when rising (s), RotorS.", 0.0125)
-    rotor_tau_down: float = _doc("Rotor thrust time constant when falling (s), RotorS.", 0.025)
-    rotor_moment_constant: float = _doc("Yaw moment per newton of thrust (m), RotorS.", 0.016)
+        "reaches the same thrust (thrust and torque both scale with rho*omega^2).")
+    rotor_tau_up: float = documented(0.0125, "Rotor thrust time constant when rising (s), RotorS.")
+    rotor_tau_down: float = documented(0.025, "Rotor thrust time constant when falling (s), RotorS.")
+    rotor_moment_constant: float = documented(0.016, "Yaw moment per newton of thrust (m), RotorS.")
 
     # ---------------------------------------------------------------- medium (orig 2.5, mjx-notes 2.3)
-    water_density: float = _doc("kg/m^3, UUV fluid_density (orig 2.5).", 1028.0)
-    air_density: float = _doc("kg/m^3, sea-level air.", 1.225)
-    hull_volume: float = _doc("Displaced volume (m^3), UUV plugin volume (orig 2.5): 0.5 N of buoyancy, "
-                              "2.5 % of the weight.", 5e-5)
-    hull_height: float = _doc("Height (m) over which buoyancy, drag and added mass blend in as the hull "
-                              "crosses z = 0 (UUV bounding box height 0.1).", 0.1)
-    added_mass: Vec3 = _doc("Translational added mass in water (kg, body axes), UUV (orig 2.5).", (1.93, 1.93, 1.93))
-    added_inertia: Vec3 = _doc("Rotational added inertia in water (kg m^2, body axes), UUV diagonal.",
-                               (0.0156, 0.03, 0.0166))
-    water_linear_drag: Vec3 = _doc("Linear drag in water (N s/m, body axes), UUV linear_damping with the "
-                                   "dissipative sign (orig 2.5).", (0.0125, 0.0125, 0.0499))
-    water_quadratic_drag: Vec3 = _doc(
+    water_density: float = documented(1028.0, "kg/m^3, UUV fluid_density (orig 2.5).")
+    air_density: float = documented(1.225, "kg/m^3, sea-level air.")
+    hull_volume: float = documented(5e-5, "Displaced volume (m^3), UUV plugin volume (orig 2.5): 0.5 N of buoyancy, "
+                                          "2.5 % of the weight.")
+    hull_height: float = documented(0.1, "Height (m) over which buoyancy, drag and added mass blend in as the hull "
+                                         "crosses z = 0 (UUV bounding box height 0.1).")
+    added_mass: Vec3 = documented((1.93, 1.93, 1.93),
+        "Translational added mass in water (kg, body axes), UUV (orig 2.5).")
+    added_inertia: Vec3 = documented((0.0156, 0.03, 0.0166),
+        "Rotational added inertia in water (kg m^2, body axes), UUV diagonal.")
+    water_linear_drag: Vec3 = documented((0.0125, 0.0125, 0.0499),
+        "Linear drag in water (N s/m, body axes), UUV linear_damping with the "
+        "dissipative sign (orig 2.5).")
+    water_quadratic_drag: Vec3 = documented((8.7, 8.7, 39.9),
         "Quadratic drag in water (N s^2/m^2, body axes) = rho_w/2 * Cd * A * fill. Sides: Cd 1.0, "
         "0.47 x 0.09 m, fill 0.4; top: Cd 1.17 (flat plate), 0.47 x 0.47 m, fill 0.3 (open frame). The "
-        "UUV values (0.0125) are ~1000x below any real body of this size.", (8.7, 8.7, 39.9))
-    water_angular_drag: Vec3 = _doc("Rotational drag in water (N m s/rad, body axes), UUV.", (0.0125, 0.0125, 0.0499))
-    air_linear_drag: Vec3 = _doc("Linear drag in air (N s/m, body axes): RotorS rotor drag at hover "
-                                 "(~0.25 N per m/s, orig 2.2), horizontal only.", (0.25, 0.25, 0.0))
-    air_quadratic_drag: Vec3 = _doc("Quadratic drag in air: water_quadratic_drag * rho_a/rho_w.",
-                                    (0.0104, 0.0104, 0.0475))
-    wind: bool = _doc("Horizontal Ornstein-Uhlenbeck wind acting in air only (orig 2.6).", True)
-    wind_theta: float = _doc("OU mean reversion per update (orig 2.6).", 0.15)
-    wind_sigma: float = _doc("OU noise per update (m/s) (orig 2.6).", 0.175)
-    wind_period: float = _doc("Seconds between wind updates (orig: 1 Hz).", 1.0)
-    water_current: Vec3 = _doc("Constant water current (m/s, world frame); the original's was zero.", (0.0, 0.0, 0.0))
+        "UUV values (0.0125) are ~1000x below any real body of this size.")
+    water_angular_drag: Vec3 = documented((0.0125, 0.0125, 0.0499),
+        "Rotational drag in water (N m s/rad, body axes), UUV.")
+    air_linear_drag: Vec3 = documented((0.25, 0.25, 0.0),
+        "Linear drag in air (N s/m, body axes): RotorS rotor drag at hover "
+        "(~0.25 N per m/s, orig 2.2), horizontal only.")
+    air_quadratic_drag: Vec3 = documented((0.0104, 0.0104, 0.0475),
+        "Quadratic drag in air: water_quadratic_drag * rho_a/rho_w.")
+    wind: bool = documented(True, "Horizontal Ornstein-Uhlenbeck wind acting in air only (orig 2.6).")
+    wind_theta: float = documented(0.15, "OU mean reversion per update (orig 2.6).")
+    wind_sigma: float = documented(0.175, "OU noise per update (m/s) (orig 2.6).")
+    wind_period: float = documented(1.0, "Seconds between wind updates (orig: 1 Hz).")
+    water_current: Vec3 = documented((0.0, 0.0, 0.0),
+        "Constant water current (m/s, world frame); the original's was zero.")
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -144,11 +152,12 @@ class EnvParams:
 
 def param_docs() -> dict[str, str]:
     """Name -> documentation of every parameter (used by error messages and the README)."""
-    return {f.name: f.metadata["doc"] for f in dataclasses.fields(EnvParams)}
+    return schema.field_docs(EnvParams)
 
 
-def _fail(name: str, value: Any, why: str) -> None:
-    raise ValueError(f"env parameter {name}={value!r}: {why}")
+# _fail(name, value, why) raises ValueError("env parameter NAME=VALUE: why"); the evaluator's CLI
+# reads that prefix to name the key as typed.
+_fail = functools.partial(schema.fail, prefix="env parameter ")
 
 
 def validate(p: EnvParams) -> EnvParams:
