@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import docrl_jax.envs as envs
-from docrl_jax import evaluate, runs
+from docrl_jax import evaluate
 from docrl_jax.evaluate import cli, curves, paper_results, plotting, rollout
 from docrl_jax.baselines.scripted import straight_line
 from docrl_jax.errors import RunDirError
@@ -323,7 +323,7 @@ def fake_trainer(monkeypatch, tmp_path):
         if seed_index > 1:
             raise RunDirError(f"run directory {run_dir!r} has seeds 0, 1; no seed index {seed_index}")
         return dataclasses.replace(oracle, source=f"{which} policy of seed index {seed_index}")
-    monkeypatch.setattr(runs, "load_policy", load_policy)
+    monkeypatch.setattr("docrl_jax.runs.load_policy", load_policy)
     run = tmp_path / "oracle_run"
     run.mkdir()
     (run / "config.yaml").write_text("algo: oracle\n")
@@ -436,7 +436,7 @@ def test_cli_run_seeds_share_one_compile(monkeypatch, tmp_path):
     def load_policy(run_dir, seed_index=0, which="final"):  # fresh closures on every call, as the real loader makes
         return Policy(name="p", params={"dive": jnp.asarray(seed_index == 1)},
                       init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a))
-    monkeypatch.setattr(runs, "load_policy", load_policy)
+    monkeypatch.setattr("docrl_jax.runs.load_policy", load_policy)
     run = tmp_path / "two_seeds"
     run.mkdir()
     (run / "config.yaml").write_text("algo: scripted\n")
@@ -460,7 +460,7 @@ def test_cli_several_runs_are_the_seeds_of_one_method(monkeypatch, tmp_path, cap
     def load_policy(run_dir, seed_index=0, which="final"):
         return Policy(name="p", params={"dive": jnp.asarray(str(run_dir).endswith("B"))},
                       init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a), source=f"{run_dir}")
-    monkeypatch.setattr(runs, "load_policy", load_policy)
+    monkeypatch.setattr("docrl_jax.runs.load_policy", load_policy)
     runs = []
     for name in ("A", "B"):
         run = tmp_path / f"td3_lstm_seed{name}"
@@ -499,3 +499,17 @@ def test_cli_run_defaults_to_every_trained_seed(fake_trainer, tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(["--run", str(fake_trainer), "--out", str(tmp_path / "bad")])
     assert e.value.code == 2 and "num_seeds='many'" in capsys.readouterr().err
+
+
+def test_old_names_say_where_evaluation_lives():
+    """The old module names fail naming the new ones; the documented commands stay importable by name."""
+    import importlib
+    for old, new in (("docrl_jax.protocol", "docrl_jax.evaluate.protocol"),
+                     ("docrl_jax.paper_results", "docrl_jax.evaluate.paper_results")):
+        with pytest.raises(ModuleNotFoundError, match=f"import {new} instead"):
+            importlib.import_module(old)
+    from docrl_jax import compare as compare_command, plotting as plotting_command
+    with pytest.raises((AttributeError, ImportError), match="import load_eval from docrl_jax.evaluate.compare"):
+        compare_command.load_eval
+    with pytest.raises((AttributeError, ImportError), match="import plot_figure3 from docrl_jax.evaluate.plotting"):
+        plotting_command.plot_figure3
