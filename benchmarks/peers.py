@@ -150,7 +150,7 @@ def configs(args) -> list[tuple[str, dict, str]]:
 def env_settings(config_name: str) -> dict:
     """The env keyword overrides of our packaged config `config_name` (what our trainer trains on)."""
     from docrl_jax.config import env_kwargs, load_config
-    c = load_config(config_name, backend="cpu", check_memory=False)
+    c = load_config(config_name, backend="cpu")
     if c.env.scenario != 2:
         raise SystemExit(f"--env-from {config_name}: trains on scenario {c.env.scenario}; the peers train on 2")
     return env_kwargs(c)

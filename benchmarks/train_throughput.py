@@ -35,7 +35,7 @@ def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str])
     # 128 steps of history per env (the default 50,000 transitions hold only 12 at 4,096 envs).
     overrides = [f"env.num_envs={num_envs}", f"train.log_every={num_envs * iters}", "train.start_steps=0",
                  "train.num_seeds=1", *sets]
-    if load_config(name, check_memory=False).replay.buffer_size < 128 * num_envs:
+    if load_config(name).replay.buffer_size < 128 * num_envs:
         overrides.insert(4, f"replay.buffer_size={128 * num_envs}")
     config = load_config(name, overrides)
     trainer = make_trainer(config)

@@ -38,6 +38,7 @@ import orbax.checkpoint as ocp
 from docrl_jax.errors import RunDirError
 
 CHECKPOINT_DIR = "checkpoints"
+DAMAGED_DIR = "checkpoints_damaged"   # where a resume moves the checkpoints it could not read
 
 
 def _pack(tree: Any) -> dict[str, Any]:
@@ -190,3 +191,20 @@ def restore_newest_intact(mngr: ocp.CheckpointManager, abstract_state: Any, shar
         return Restored(step, state, best, meta, skipped)
     tried = "; ".join(f"{s}: {why}" for s, why in skipped) or "none found"
     raise RunDirError(f"no intact checkpoint in {mngr.directory} ({tried})")
+
+
+def set_aside(mngr: ocp.CheckpointManager, steps: list[int]) -> Path | None:
+    """Moves damaged checkpoints out of the way (into <run_dir>/checkpoints_damaged/), so the resumed
+    run can write those steps again; nothing is deleted. Returns the folder, or None if none moved.
+    The caller reloads every process's manager afterwards (`mngr.reload()`)."""
+    if not steps:
+        return None
+    root = Path(mngr.directory)
+    aside = root.parent / DAMAGED_DIR
+    aside.mkdir(exist_ok=True)
+    for step in steps:
+        target, n = aside / str(step), 1
+        while target.exists():
+            target, n = aside / f"{step}.{n}", n + 1
+        shutil.move(str(root / str(step)), str(target))
+    return aside

@@ -11,7 +11,7 @@ import yaml
 from docrl_jax.config import config_from_dict, load_config, packaged_configs_dir
 from docrl_jax.train import make_train, make_trainer
 
-SMALL = ["env.num_envs=4", "replay.buffer_size=400", "replay.batch_size=8", "train.total_env_steps=64",
+SMALL = ["env.num_envs=4", "train.start_steps=0", "replay.buffer_size=400", "replay.batch_size=8", "train.total_env_steps=64",
          "train.log_every=32", "train.eval_episodes=2", "env.max_episode_steps=20"]
 
 

@@ -115,6 +115,13 @@ def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
     return config, run_dir
 
 
+def _barrier(name: str) -> None:
+    """Waits for every process (a no-op in a single-process run)."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+        multihost_utils.sync_global_devices(name)
+
+
 class _ProgressPanel:
     """The progress bar with the latest statistics on a line of their own (they do not fit beside it)."""
 
@@ -165,9 +172,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     t_cfg = config.train
     placement = sharding.seed_placement(t_cfg)  # the device plan, resolved once for the whole run
     memory.check_memory(config, placement.devices)
-    if jax.process_count() > 1:  # every process has read the run directory before process 0 writes to it
-        from jax.experimental import multihost_utils
-        multihost_utils.sync_global_devices("docrl_jax.train.cli.run")
+    _barrier("docrl_jax.train.cli.run")  # every process has read the run directory before process 0 writes to it
     if placement.note:
         console.print(f"[yellow]note:[/] {placement.note}")
     if primary:
@@ -190,6 +195,12 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
             best_shape=programs.state_shape.agent.actor_average if t_cfg.track_best_policy else None)
         for step, reason in restored.skipped:
             console.print(f"[yellow]skipped checkpoint {step}:[/] {reason}")
+        if restored.skipped:  # out of the way of the steps the resumed run writes again; nothing deleted
+            if primary:
+                aside = checkpoint.set_aside(mngr, [step for step, _ in restored.skipped])
+                console.print(f"moved the skipped checkpoint(s) to {aside}")
+            _barrier("docrl_jax.train.cli.set_aside")
+            mngr.reload()
         step, state, meta = restored.step, restored.state, restored.meta
         done_chunks, wall_before, pending = meta["chunk"], meta["wall_time_s"], meta["pending"]
         # A checkpoint from before best-policy tracking starts it afresh at the next evaluation.

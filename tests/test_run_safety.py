@@ -1,0 +1,265 @@
+"""No run is ever lost or silently wrong: evaluation and checkpoint cadences that hold on a slow
+device, an honest ETA, Ctrl-C answered at once and never losing the run, a run directory that is
+not overwritten, a damaged newest checkpoint skipped on resume, one-line file-system errors, and
+output that stays readable in a log file. Every run here reuses the easy config's compiled programs
+(tests/_trainer_common.py), so each costs seconds."""
+
+from __future__ import annotations
+
+import csv
+import errno
+import io
+import os
+import shutil
+import signal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from _trainer_common import easy_config, finished_run, tmp_dir
+
+from docrl_jax import checkpoint, runs
+from docrl_jax.errors import RunDirError
+from docrl_jax.train import cli, load_policy, loop
+
+
+def _rows(run_dir):
+    with open(run_dir / "metrics.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _console():
+    out = io.StringIO()
+    return cli.make_console(file=out), out
+
+
+def _steps(run_dir):
+    return sorted(int(p.name) for p in (run_dir / "checkpoints").iterdir() if p.name.isdigit())
+
+
+# ------------------------------------------------------------------ cadences and the ETA
+def test_minutes_cadence_evaluates_and_checkpoints_when_env_steps_are_slow():
+    """The packaged defaults evaluate every 2.5 M and checkpoint every 25 M env steps: hours to days on
+    a CPU. The wall-clock cadences make every chunk evaluate and checkpoint here (0.0001 minutes)."""
+    d = tmp_dir("minutes")
+    config = easy_config(train__eval_every=10**9, train__checkpoint_every=10**9, train__eval_every_minutes=1e-4,
+                         train__checkpoint_every_minutes=1e-4, train__total_env_steps=12000)
+    assert cli.run(config, d, show_progress=False, stop_after_chunks=2) == cli.EXIT_INTERRUPTED
+    assert [int(r["env_steps"]) for r in _rows(d)] == [0, 4000, 8000]
+    assert _steps(d) == [4000, 8000]
+
+
+def test_cadence_by_env_steps_or_minutes_whichever_first():
+    now = [0.0]
+    c = loop.Cadence(every_steps=100, every_minutes=1.0, clock=lambda: now[0])
+    assert not c.due(0, 50) and c.due(50, 100) and c.due(150, 250)
+    now[0] = 59.0
+    assert not c.due(100, 150)
+    now[0] = 60.0
+    assert c.due(100, 150)          # a minute since it was last done, whatever the steps
+    c.done()
+    assert not c.due(150, 190)
+    assert c.remaining(0, 1000) == 10 and c.remaining(950, 1050) == 2   # ... and one at the end
+
+
+def test_eta_waits_for_learning_chunks_and_counts_evaluations():
+    eta = loop.Eta()
+    eta.add_chunk(0.01, learning=False)   # before start_steps: 500x faster than learning chunks
+    assert eta.seconds(100, 5) is None and eta.text(100, 5) == "ETA once learning starts"
+    eta.add_chunk(2.0, learning=True)
+    eta.add_chunk(2.0, learning=True)
+    eta.add_eval(5.0)
+    assert eta.seconds(10, 2) == pytest.approx(10 * 2.0 + 2 * 5.0)
+    assert eta.text(10, 2) == "ETA 30 s"
+
+
+def test_progress_line_says_no_eta_before_learning_then_one():
+    console, out = _console()
+    config = easy_config(train__start_steps=6000)   # chunk 1 (4,000 steps) learns on no iteration
+    assert cli.run(config, tmp_dir("eta"), console=console, show_progress=False, stop_after_chunks=3) == \
+        cli.EXIT_INTERRUPTED
+    lines = [line for line in out.getvalue().splitlines() if " steps/s " in line]
+    assert len(lines) == 3
+    assert "ETA once learning starts" in lines[0] and "ETA once learning starts" in lines[1]
+    assert "ETA " in lines[2] and "once learning" not in lines[2]
+
+
+# ------------------------------------------------------------------ Ctrl-C
+def test_ctrl_c_is_answered_while_the_device_still_computes():
+    """The message comes while the chunk runs, not when it ends: `wait` returns to Python between polls."""
+    said, pending = [], {}
+
+    class Recorder:
+        def print(self, text):
+            said.append((text, pending["y"].is_ready()))
+
+    @jax.jit
+    def slow(x):
+        return jax.lax.fori_loop(0, 20_000, lambda i, v: jnp.sin(v @ v.T) / 64.0, x)
+
+    slow(jnp.ones((64, 64))).block_until_ready()  # compiled
+    with loop.Interrupt(Recorder()) as interrupt:
+        pending["y"] = slow(jnp.ones((64, 64)))
+        os.kill(os.getpid(), signal.SIGINT)
+        loop.wait(pending["y"], interrupt)
+    assert interrupt.requested and len(said) == 1 and "after the running chunk" in said[0][0]
+    assert said[0][1] is False   # printed while the device was still computing
+
+
+def _interrupting(monkeypatch, times: int, during_save: int = 0):
+    """Sends `times` SIGINTs while the first chunk runs and `during_save` more inside the first save."""
+    real_wait, real_save = loop.wait, checkpoint.save
+    sent = {"wait": False, "save": False}
+
+    def wait(tree, interrupt=None, poll_s=0.05):
+        if not sent["wait"]:
+            sent["wait"] = True
+            for _ in range(times):
+                os.kill(os.getpid(), signal.SIGINT)
+        return real_wait(tree, interrupt, poll_s)
+
+    def save(*args, **kwargs):
+        if not sent["save"]:
+            sent["save"] = True
+            for _ in range(during_save):
+                os.kill(os.getpid(), signal.SIGINT)
+        return real_save(*args, **kwargs)
+
+    monkeypatch.setattr(loop, "wait", wait)
+    monkeypatch.setattr(checkpoint, "save", save)
+
+
+@pytest.mark.parametrize("presses", [1, 2])
+def test_ctrl_c_once_or_twice_saves_after_the_chunk(monkeypatch, presses):
+    d = tmp_dir(f"ctrl_c_{presses}")
+    _interrupting(monkeypatch, presses)
+    console, out = _console()
+    assert cli.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_INTERRUPTED
+    text = out.getvalue()
+    assert "stopping after the running chunk" in text
+    assert ("still stopping" in text) == (presses == 2)
+    assert _steps(d) == [4000]
+    # Not wrapped at 80 columns in a log file: the resume command is on one line.
+    assert f"resume with python -m docrl_jax.train --run-dir {d} --resume" in text
+    assert load_policy(d).source.endswith("checkpoint 4000")
+
+
+def test_a_third_ctrl_c_during_a_save_waits_for_it(monkeypatch):
+    """Two presses during the chunk, a third while the checkpoint is written: the write completes,
+    then the run quits, keeping it."""
+    d = tmp_dir("ctrl_c_3")
+    _interrupting(monkeypatch, 2, during_save=1)
+    console, out = _console()
+    assert cli.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_INTERRUPTED
+    assert "quit without saving; newest checkpoint: env step 4,000" in out.getvalue()
+    assert _steps(d) == [4000] and not list((d / "checkpoints").glob("*tmp*"))
+    load_policy(d)
+
+
+# ------------------------------------------------------------------ run directories
+def test_a_directory_holding_a_run_without_checkpoint_is_not_overwritten(tmp_path):
+    d = tmp_path / "started"
+    d.mkdir()
+    (d / "config.yaml").write_text("name: first\n")
+    (d / "metrics.csv").write_text("env_steps\n0\n")
+    args = cli.build_parser().parse_args(["--config", "sac_lstm", "--run-dir", str(d)])
+    with pytest.raises(RunDirError, match=r"already holds a run.*--resume.*fresh --run-dir"):
+        cli._resolve(args)
+    assert (d / "config.yaml").read_text() == "name: first\n" and (d / "metrics.csv").read_text() == "env_steps\n0\n"
+    args = cli.build_parser().parse_args(["--run-dir", str(d), "--resume"])
+    with pytest.raises(RunDirError, match="has no checkpoint to resume from"):
+        cli._resolve(args)
+
+
+def _damaged_copy(name: str, damage) -> tuple:
+    """A finished run (checkpoints 8,000 and 16,000) copied, its newest checkpoint damaged, resumed
+    with a longer run."""
+    src = finished_run()
+    d = tmp_dir(name)
+    shutil.rmtree(d)
+    shutil.copytree(src, d)
+    damage(d / "checkpoints" / "16000")
+    console, out = _console()
+    status = cli.run(easy_config(), d, resume=True, console=console, show_progress=False)
+    return d, status, out.getvalue()
+
+
+def test_resume_skips_a_corrupt_newest_checkpoint_and_says_why():
+    def corrupt(step_dir):
+        for f in (step_dir / "state").rglob("*"):
+            if f.is_file():
+                f.write_bytes(b"garbage")
+    d, status, text = _damaged_copy("corrupt_newest", corrupt)
+    assert status == cli.EXIT_OK
+    assert "skipped checkpoint 16000:" in text and "resumed from env step 8,000" in text
+    assert (d / "checkpoints_damaged" / "16000" / "state").is_dir()   # set aside, not deleted
+    skipped = [line for line in text.splitlines() if line.startswith("skipped checkpoint")]
+    assert len(skipped) == 1 and len(skipped[0]) < 400      # one line, not pages of TensorStore spec
+    # The re-run from 8,000 writes the same rows as the uninterrupted run did.
+    strip = lambda rows: [{k: v for k, v in r.items() if k != "wall_time_s"} for r in rows]  # noqa: E731
+    assert strip(_rows(d)) == strip(_rows(finished_run()))
+    # The resumed run's progress line knows the last evaluation (it read it back from metrics.csv).
+    assert "eval success nan" not in text and "eval success" in text
+
+
+def test_resume_skips_a_newest_checkpoint_with_empty_metadata():
+    def empty_meta(step_dir):
+        for f in (step_dir / "meta").rglob("*"):
+            if f.is_file():
+                f.write_text("")
+    _, status, text = _damaged_copy("empty_meta", empty_meta)
+    assert status == cli.EXIT_OK and "skipped checkpoint 16000" in text and "resumed from env step 8,000" in text
+
+
+def test_resume_with_no_intact_checkpoint_is_one_clear_error():
+    src = finished_run()
+    d = tmp_dir("all_corrupt")
+    shutil.rmtree(d)
+    shutil.copytree(src, d)
+    for f in (d / "checkpoints").rglob("*"):
+        if f.is_file() and "state" in f.parts:
+            f.write_bytes(b"garbage")
+    console, out = _console()
+    assert cli.run(easy_config(), d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
+    text = out.getvalue()
+    assert "no intact checkpoint" in text and "16000:" in text and "8000:" in text and len(text.splitlines()) <= 6
+
+
+# ------------------------------------------------------------------ file-system errors
+def test_a_run_directory_that_cannot_be_created_is_one_line(tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    console, out = _console()
+    assert cli.run(easy_config(), blocker / "run", console=console, show_progress=False) == cli.EXIT_CONFIG
+    lines = [line for line in out.getvalue().splitlines() if line.strip()]
+    assert lines[-1].startswith("error:") and str(blocker / "run") in lines[-1] and "Not a directory" in lines[-1]
+    assert "Traceback" not in out.getvalue()
+
+
+def test_a_full_disk_while_checkpointing_is_one_line_and_keeps_older_checkpoints(monkeypatch):
+    d = tmp_dir("full_disk")
+    config = easy_config(train__checkpoint_every=4000)
+    assert cli.run(config, d, show_progress=False, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
+    real = checkpoint.ocp.CheckpointManager.save
+
+    def full(self, step, *args, **kwargs):   # what Orbax leaves when the disk fills mid-write
+        (self.directory / f"{step}.orbax-checkpoint-tmp-1234").mkdir(parents=True)
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(checkpoint.ocp.CheckpointManager, "save", full)
+    console, out = _console()
+    assert cli.run(config, d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
+    monkeypatch.setattr(checkpoint.ocp.CheckpointManager, "save", real)
+    error = [line for line in out.getvalue().splitlines() if line.startswith("error:")]
+    assert len(error) == 1 and "cannot write checkpoint 8000" in error[0] and "No space left on device" in error[0]
+    assert "Traceback" not in out.getvalue()
+    assert _steps(d) == [4000] and not list((d / "checkpoints").glob("*tmp*"))
+    assert load_policy(d).source.endswith("checkpoint 4000")
+
+
+def test_non_terminal_output_is_not_wrapped():
+    console, out = _console()
+    long = "python -m docrl_jax.train --run-dir " + "x" * 150 + " --resume"
+    console.print(long)
+    assert long in out.getvalue().splitlines()
