@@ -1,6 +1,6 @@
 """How much the start heading decides a paper-pair score: each run's final policy on the paper's
 pairs, from the evaluator's trial starts (nominal yaw +-0.1 rad, +-0.1 m) and from the exact start
-facing a uniformly random yaw (what the trainer's own evaluation used before 2026-11-24), with the
+facing a uniformly random yaw (the trainer's first evaluation test, train.eval_pair_starts: random_yaw), with the
 same trial keys, the evaluator's env (0.01 m range noise, wind) and step limit. CPU is enough.
 
     python benchmarks/pair_starts.py --runs R/td3_lstm_seed0 R/td3_lstm_seed1 R/td3_lstm_seed2 --out OUT

@@ -8,7 +8,7 @@ Each seed launches `python -m docrl_jax.train --config C --set train.seed=S` as 
 time includes process start-up and compilation, and watches its metrics.csv. The trainer's periodic
 evaluation runs the paper's air-to-water and water-to-air pairs of its scenario
 (`train.eval_paper_pairs`, `train.eval_episodes` episodes each, deterministic policy), from the
-evaluator's trial starts (`train.eval_pair_starts: paper`; results before 2026-11-24 used
+evaluator's trial starts (`train.eval_pair_starts: paper`; results measured before that option existed used
 `random_yaw`, a stricter test: pass `--set train.eval_pair_starts=random_yaw` to compare with them). The clock for
 a seed stops at the first evaluation with both directions >= `--target`. Without `--to-end` the
 trainer then gets Ctrl-C (it writes its final checkpoint); with `--to-end` it runs to its configured

@@ -157,11 +157,11 @@ class TrainConfig:
     eval_paper_pairs: bool = documented(False, "Also evaluate the paper's air-to-water and water-to-air pairs "
                                                "(eval_episodes each, columns success_air_to_water/_water_to_air).")
     eval_pair_starts: str = documented("paper", "Starts of the paper-pair episodes: 'paper' = the evaluator's trials "
-                                                "(docrl_jax.protocol: nominal yaw +-0.1 rad, start +-0.1 m), so the "
+                                                "(docrl_jax.evaluate.protocol: nominal yaw +-0.1 rad, start +-0.1 m), so the "
                                                 "columns estimate what `evaluate` reports; 'random_yaw' = the exact "
                                                 "start facing a uniformly random yaw, a stricter test (the trainer's "
-                                                "only one before 2026-11-24; W-A 5-38 points lower on 2026-11-23's "
-                                                "policies).", choices=("paper", "random_yaw"))
+                                                "first test; W-A 5-38 points lower on the same final policies, "
+                                                "benchmarks/results/cpu/pair_starts.md).", choices=("paper", "random_yaw"))
     eval_trained_actor: bool = documented(False, "With agent.policy_average_tau < 1: also evaluate the trained (not "
                                                  "averaged) actor on the same episodes, columns trained_actor_* "
                                                  "(an ablation; doubles the evaluation time).")

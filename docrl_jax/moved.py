@@ -29,8 +29,8 @@ class MovedModuleError(ModuleNotFoundError):
 class _MovedFinder(importlib.abc.MetaPathFinder):
     def find_spec(self, fullname, path=None, target=None):
         if fullname in MOVED_MODULES:
-            raise MovedModuleError(f"{fullname} moved: import {MOVED_MODULES[fullname]} instead",
-                                   name=fullname)
+            # No `name=`: `from docrl_jax import cli` would then swallow it for a bare "cannot import name".
+            raise MovedModuleError(f"{fullname} moved: import {MOVED_MODULES[fullname]} instead")
         return None
 
 

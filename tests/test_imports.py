@@ -95,3 +95,21 @@ def test_no_import_runs_back_up():
     up = [f"{m} -> {t}" for m, targets in graph.items() for t in targets
           if t != "docrl_jax" and _floor(t) > _floor(m)]
     assert not up, up
+
+
+def test_every_moved_module_name_says_where_it_lives_now():
+    import importlib
+
+    import pytest
+
+    from docrl_jax.moved import MOVED_MODULES, MovedModuleError
+    for old, new in MOVED_MODULES.items():
+        with pytest.raises(MovedModuleError, match=f"{old} moved: import {new.split()[0]}"):
+            importlib.import_module(old)
+        parent, _, leaf = old.rpartition(".")
+        with pytest.raises(MovedModuleError, match=f"{old} moved"):   # the `from package import old` form
+            exec(f"from {parent} import {leaf}", {})
+    with pytest.raises(ImportError, match="RunDirError moved: import it from docrl_jax.errors"):
+        exec("from docrl_jax.policy import RunDirError", {})
+    with pytest.raises(ImportError, match="import plan from docrl_jax.train.sweep"):
+        exec("from docrl_jax.sweep import plan", {})

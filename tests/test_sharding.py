@@ -88,7 +88,7 @@ def test_distributed_is_requested_by_the_coordinator_and_process_count():
 
 
 def test_distributed_without_a_coordinator_is_a_clear_error(monkeypatch, capsys):
-    from docrl_jax import cli
+    from docrl_jax.train import cli
     for name in ("JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID", "SLURM_JOB_ID"):
         monkeypatch.delenv(name, raising=False)
     assert cli.main(["--distributed", "--config", "td3_lstm", "--run-dir", "x"]) == cli.EXIT_CONFIG

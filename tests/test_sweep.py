@@ -14,7 +14,7 @@ import pytest
 import yaml
 from _trainer_common import EASY, finished_run, tmp_dir
 
-from docrl_jax.train import cli, sweep
+from docrl_jax.train import cli, sweep, sweep_report
 from docrl_jax.errors import ConfigError, RunDirError
 
 
@@ -90,7 +90,7 @@ def test_table_time_to_90_and_final_success(tmp_path):
     grid = {"agent.tau": [0.01, 0.02]}
     (tmp_path / sweep.SWEEP_FILE).write_text(json.dumps({"grid": grid, "combinations": [
         {"name": "c00", "values": {"agent.tau": 0.01}}, {"name": "c01", "values": {"agent.tau": 0.02}}]}))
-    cols = sweep._columns(grid)
+    cols = sweep_report.columns(grid)
     def write(name, rows):
         (tmp_path / name).mkdir()
         with open(tmp_path / name / "metrics.csv", "w", newline="") as fh:
@@ -102,7 +102,7 @@ def test_table_time_to_90_and_final_success(tmp_path):
     write("c00", [(0, 5, 0, 0.0, 0.0, 0.0, -10), (10, 20, 0, 0.9, 0.95, 0.9, 50), (20, 30, 0, 1.0, 1.0, 1.0, 90),
                   (0, 5, 1, 0.0, 0.0, 0.0, -10), (10, 20, 1, 0.5, 0.95, 0.5, 10), (20, 40, 1, 0.8, 0.9, 0.92, 70)])
     write("c01", [(0, 5, 0, 0.0, 0.0, 0.0, -10), (20, 30, 0, 0.5, 0.5, 0.95, 0)])
-    paths = sweep.write_summary(tmp_path, grid)
+    paths = sweep_report.write_summary(tmp_path, grid)
     recs = _rows(tmp_path / "sweep.csv")
     assert float(recs[0]["time_to_90_s_mean"]) == 30 and float(recs[0]["time_to_90_s_std"]) == 10
     assert float(recs[0]["final_success_mean"]) == pytest.approx(0.9)

@@ -2,7 +2,7 @@
 
 The paper cites Marino et al. (2016) for its BBA; what the authors actually ran is their
 `scripts/bug_algorithm.py`, a Bug-2-like wall follower driven through the same velocity bridge as
-the agents (shared/research/original-code.md section 6). That script is a sequence of blocking
+the agents (the authors' released code). That script is a sequence of blocking
 loops; here it is a small state machine in the policy carry, one 0.2 s control step per `act`
 call, with every branch computed and selected by `jnp.where` (jit/vmap-safe, no Python control
 flow on traced values).
@@ -54,8 +54,8 @@ Deviations, and why:
     (+-135 deg LIDAR, +-45 deg sonar), and then on the fan's beams within +-45 deg of it.
   * Heading. `rotate` compared raw yaw - goal angle without wrapping (it could turn the long way
     round); here the error is wrapped to [-pi, pi] and the turn takes the short way.
-  * Depth order. `depth_phase="after"` (default) is the DoCRL script's order as original-code.md
-    section 6 reports it: the whole horizontal phase at the start altitude, then the vertical one.
+  * Depth order. `depth_phase="after"` (default) is the DoCRL script's order as the authors' released script
+    runs it: the whole horizontal phase at the start altitude, then the vertical one.
     `"first"` is the order of the JINT copy of the script (check_z_position before the horizontal
     phase; that copy is the one we could read), `"concurrent"` commands vz towards the target depth
     in every mode, and `"in_air"` (ours) climbs first when the target is above and descends last

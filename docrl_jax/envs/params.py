@@ -2,7 +2,7 @@
 
 `EnvParams` is frozen and hashable: it is static configuration, read at trace time, so changing
 a value recompiles. `docrl_jax.envs.make(scenario, **overrides)` builds one and validates it.
-Sources: "orig" = the authors' released code (shared/research/original-code.md, section given),
+Sources: "orig" = the authors' released code (the section of our notes on it given),
 "paper" = the DoCRL paper, "issue" = the project's environment contract.
 """
 
