@@ -7,7 +7,7 @@ seed. On D > 1 devices the axis is split over a one-axis mesh named 'seed'
 run under `jax.shard_map`: each device trains its num_seeds / D seeds, vmapped, or unbatched when it
 holds one, with no communication between devices. A seed's numbers do not depend on the device it
 runs on (seeds are independent), so a sharded run gives the numbers of a one-device run of the same
-seeds, to float rounding: exactly when both run the same per-device program (tests/test_sharding.py).
+seeds, to float rounding: exactly when both run the same per-device program (tests/train/test_sharding.py).
 
 Which devices (`train.devices`, see `plan_devices`):
   0 / 'all'  every device of every process, or the largest count that divides num_seeds when the

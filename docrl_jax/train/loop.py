@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -89,7 +90,7 @@ class Interrupt:
     `poll` (called while the loop waits for a chunk) rather than in the handler, so they never
     interleave with the progress display's own writes."""
 
-    def __init__(self, console, action: str = "save a checkpoint"):
+    def __init__(self, console, action: str = "saving a checkpoint"):
         self.console, self.action = console, action
         self.count, self.said = 0, 0
         self.next_stop = "after the running chunk"
@@ -125,11 +126,11 @@ class Interrupt:
         while self.said < self.count:
             self.said += 1
             if self.said == 1:
-                self.console.print(f"[bold yellow]stopping[/] {self.next_stop}, then I {self.action} and stop "
-                                   f"(Ctrl-C twice more quits without saving)")
+                self.console.print(f"[bold yellow]stopping[/] {self.next_stop}, then {self.action} "
+                                   f"(Ctrl-C twice more quits without it)")
             elif self.said == 2:
-                self.console.print(f"[bold yellow]still stopping[/] {self.next_stop} to {self.action}; one more "
-                                   f"Ctrl-C quits without saving (newest checkpoint kept: {self.newest})")
+                self.console.print(f"[bold yellow]still stopping[/] {self.next_stop}, then {self.action}; one more "
+                                   f"Ctrl-C quits without it (newest checkpoint kept: {self.newest})")
 
     @contextlib.contextmanager
     def saving(self):
@@ -144,17 +145,26 @@ class Interrupt:
                 raise KeyboardInterrupt
 
 
-def wait(tree: Any, interrupt: Interrupt | None = None, poll_s: float = 0.05) -> Any:
-    """Blocks until the device has computed `tree`, returning to Python every `poll_s` so a Ctrl-C is
-    answered at once (a thread blocked inside XLA runs no signal handler)."""
-    leaves = [x for x in jax.tree.leaves(tree) if isinstance(x, jax.Array)]
-    while not all(x.is_ready() for x in leaves):
+def wait(tree: Any, interrupt: Interrupt | None = None, poll_s: float = 0.1) -> Any:
+    """Blocks until the device has computed `tree`. A helper thread does the blocking, so this
+    (main) thread keeps running signal handlers and prints a Ctrl-C's message at once; it wakes the
+    moment the result is ready (no polling latency added to a chunk)."""
+    ready = threading.Event()
+    waiter = threading.Thread(target=lambda: (_block_quietly(tree), ready.set()), daemon=True)
+    waiter.start()
+    while not ready.wait(poll_s):
         if interrupt is not None:
             interrupt.poll()
-        time.sleep(poll_s)
     if interrupt is not None:
         interrupt.poll()
-    return tree
+    return jax.block_until_ready(tree)  # returns at once, or raises the computation's error here
+
+
+def _block_quietly(tree: Any) -> None:
+    try:
+        jax.block_until_ready(tree)
+    except Exception:  # re-raised in the main thread by `wait`
+        pass
 
 
 @dataclass

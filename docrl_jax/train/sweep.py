@@ -57,7 +57,7 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, HParams, hparams_neutral
 from docrl_jax.config import Config, field_docs, load_config, parse_overrides, to_yaml, validate
 from docrl_jax.errors import ConfigError, RunDirError
 from docrl_jax.train import metrics
-from docrl_jax.train.loop import EXIT_CONFIG, EXIT_OK, Cadence, Hooks, Interrupt, make_console, run_chunks
+from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Hooks, Interrupt, make_console, run_chunks
 from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
 from docrl_jax.train.trainer import make_trainer
@@ -211,15 +211,19 @@ def run_sweep(combos: list[Combination], groups: list[Group], grid: dict[str, li
         metrics.write_header(d / runs.METRICS_FILE, columns(grid))
     status = EXIT_OK
     diverged: dict[str, list] = {}
-    with Interrupt(console, action="write the table") as interrupt:
-        for i, group in enumerate(groups):
-            names = ", ".join(c.name for c in group.combinations)
-            console.print(f"[bold]group {i + 1}/{len(groups)}[/] ({names}): {group.config.train.num_seeds} rows "
-                          f"in one program")
-            status = _run_group(group, grid, run_dir, console, interrupt, diverged)
-            if status != EXIT_OK:
-                console.print("interrupted: the table covers the evaluations written so far")
-                break
+    try:
+        with Interrupt(console, action="writing the table") as interrupt:
+            for i, group in enumerate(groups):
+                names = ", ".join(c.name for c in group.combinations)
+                console.print(f"[bold]group {i + 1}/{len(groups)}[/] ({names}): {group.config.train.num_seeds} "
+                              f"rows in one program")
+                status = _run_group(group, grid, run_dir, console, interrupt, diverged)
+                if status != EXIT_OK:
+                    break
+    except KeyboardInterrupt:  # the third Ctrl-C: no waiting for the running chunk
+        status = EXIT_INTERRUPTED
+    if status != EXIT_OK:
+        console.print("interrupted: the table covers the evaluations written so far")
     write_summary(run_dir, grid, diverged)
     console.print(f"table: {run_dir / TABLE_MD}")
     return status

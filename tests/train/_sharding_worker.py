@@ -1,8 +1,8 @@
-"""Run by tests/test_sharding.py in subprocesses, since XLA's forced host devices (and
+"""Run by tests/train/test_sharding.py in subprocesses, since XLA's forced host devices (and
 jax.distributed) must be set up before JAX starts.
 
-    python tests/_sharding_worker.py single OUT    one process, 4 CPU devices: runs under OUT/
-    python tests/_sharding_worker.py multi OUT     one of 2 processes (JAX_COORDINATOR_ADDRESS,
+    python tests/train/_sharding_worker.py single OUT    one process, 4 CPU devices: runs under OUT/
+    python tests/train/_sharding_worker.py multi OUT     one of 2 processes (JAX_COORDINATOR_ADDRESS,
                                                    JAX_NUM_PROCESSES, JAX_PROCESS_ID set), 2 devices each
 
 Every run trains the same 4 seeds of TINY. XLA's backend optimisation is off in these processes:

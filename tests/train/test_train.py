@@ -191,7 +191,7 @@ def test_load_policy_reads_a_checkpoint_written_on_a_gpu():
     """The committed H100 run (benchmarks/results/h100/runs/) was saved with a CUDA topology; it must
     load on this CPU and act."""
     from pathlib import Path
-    run = Path(__file__).resolve().parent.parent / "benchmarks/results/h100/runs/h100_td3_lstm_4096_shaped"
+    run = Path(__file__).resolve().parents[2] / "benchmarks/results/h100/runs/h100_td3_lstm_4096_shaped"
     policy = load_policy(run)
     carry, action = policy.act(policy.params, policy.init_carry(), jnp.zeros(26), {}, jax.random.PRNGKey(0))
     assert action.shape == (3,) and np.all(np.abs(np.asarray(action)) <= 1.0)

@@ -80,7 +80,7 @@ def test_counts_are_out_of_the_trials_run(tmp_path, capsys):
 def test_committed_tables_regenerate(variant):
     """docs/results/*/table_i.md is exactly what compare makes of the committed evaluation outputs."""
     from pathlib import Path
-    docs = Path(__file__).resolve().parents[1] / "docs" / "results"
+    docs = Path(__file__).resolve().parents[2] / "docs" / "results"
     dirs = [docs / variant / m for m in ("td3", "sac", "sto", "det")] + [docs / "bba"]
     aggs = [a for d in dirs for a in compare.load_eval(d)]
     assert {a["method"] for a in aggs} == {"DoCRL-D", "DoCRL-S", "Sto.", "Det.", "BBA"}

@@ -2,7 +2,7 @@
 of 4 seeds on 4 CPU devices, on 1, resumed across device counts, and over 2 processes x 2 devices.
 
 The runs need XLA's forced host devices, set before JAX starts, so they run in subprocesses
-(tests/_sharding_worker.py, all three started at once) on a tiny config; compiling dominates.
+(tests/train/_sharding_worker.py, all three started at once) on a tiny config; compiling dominates.
 
 Tolerance. A seed's computation does not depend on where it runs, but XLA batches the vmapped
 program of 4 seeds on one device differently from the unbatched program each device runs with one

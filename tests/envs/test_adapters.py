@@ -3,7 +3,7 @@
 Each adapter must give our env's numbers for the same keys and actions, end episodes where ours does
 with the right terminated/truncated split, and auto-reset as its library expects. The Brax parts
 (the env inside Brax's own training wrappers, and Brax's SAC trainer for a few steps) run
-in a subprocess, tests/_brax_worker.py, started with this module so that it compiles on the second
+in a subprocess, tests/envs/_brax_worker.py, started with this module so that it compiles on the second
 core while the Gymnasium tests run here.
 
 The Gymnasium reference is `conftest.env_fns(1, wind=False)` (scenario 1, no wind, step limit 500),
@@ -205,7 +205,7 @@ def brax_result(brax_worker) -> dict:
 
 def test_brax_env_matches_ours_truncates_and_auto_resets(brax_result):
     """BraxHUAUV in Brax's Vmap -> Episode -> AutoReset wrappers, with sensor noise and wind, against
-    our env for the same keys and actions (tests/_brax_worker.py, check_env_semantics): equal obs
+    our env for the same keys and actions (tests/envs/_brax_worker.py, check_env_semantics): equal obs
     and rewards; at episode_length a truncation (done 1, truncation 1) with our time-out reward and
     the slot's first observation; counters restart; the PRNG key runs on through the reset."""
     assert brax_result["env"] == "ok", brax_result["env"]
@@ -214,7 +214,7 @@ def test_brax_env_matches_ours_truncates_and_auto_resets(brax_result):
 def test_brax_sac_trains_on_our_env(brax_result):
     # The shim: jax 0.10 lacks device_put_replicated, importing the adapter defines it.
     assert not brax_result["jax_had_device_put_replicated"] and brax_result["jax_has_device_put_replicated"]
-    for name in ("sac",):   # PPO: tests/_brax_worker.py --ppo, and benchmarks/peers.py --smoke
+    for name in ("sac",):   # PPO: tests/envs/_brax_worker.py --ppo, and benchmarks/peers.py --smoke
         r = brax_result[name]
         assert "error" not in r, r.get("error")
         assert r["progress_steps"] and r["progress_steps"][-1] >= 32, (name, r)

@@ -2,7 +2,7 @@
 device, an honest ETA, Ctrl-C answered at once and never losing the run, a run directory that is
 not overwritten, a damaged newest checkpoint skipped on resume, one-line file-system errors, and
 output that stays readable in a log file. Every run here reuses the easy config's compiled programs
-(tests/_trainer_common.py), so each costs seconds."""
+(tests/train/_trainer_common.py), so each costs seconds."""
 
 from __future__ import annotations
 
@@ -112,7 +112,7 @@ def _interrupting(monkeypatch, times: int, during_save: int = 0):
     real_wait, real_save = loop.wait, checkpoint.save
     sent = {"wait": False, "save": False}
 
-    def wait(tree, interrupt=None, poll_s=0.05):
+    def wait(tree, interrupt=None, poll_s=0.1):
         if not sent["wait"]:
             sent["wait"] = True
             for _ in range(times):

@@ -106,7 +106,7 @@ def test_a_resumed_run_keeps_the_same_best_and_old_checkpoints_have_none():
     assert a.source == b.source
     _assert_same(a.params, b.params)
     from pathlib import Path
-    old = Path(__file__).resolve().parent.parent / "benchmarks/results/h100/runs/h100_td3_lstm_4096_shaped"
+    old = Path(__file__).resolve().parents[2] / "benchmarks/results/h100/runs/h100_td3_lstm_4096_shaped"
     with pytest.raises(RunDirError, match="holds no best policy.*which='final'"):
         load_policy(old, which="best")
     with pytest.raises(RunDirError, match="valid choices are final, best"):

@@ -1,4 +1,4 @@
-"""Run by tests/test_adapters.py in a subprocess: BraxHUAUV inside Brax's own training wrappers
+"""Run by tests/envs/test_adapters.py in a subprocess: BraxHUAUV inside Brax's own training wrappers
 against our env, then Brax's own SAC trainer (PPO too with --ppo), unchanged, for a few steps.
 
 A subprocess, because each part compiles programs with the MJX step inside: with XLA's cheap CPU
