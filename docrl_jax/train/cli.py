@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import jax
@@ -182,7 +184,9 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
     keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
     console.print("compiling the training, evaluation and initialisation programs ...")
-    programs, compile_s = compile_programs(config, placement.devices)
+    with ThreadPoolExecutor(1) as pool:  # TensorBoard's import (seconds on some machines) beside the compile
+        tensorboard = pool.submit(importlib.import_module, "tensorboardX")
+        programs, compile_s = compile_programs(config, placement.devices)
     console.print(f"compiled in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)")
     startup = {"compile_s": round(compile_s, 2), "launch_to_compiled_s": round(time.time() - launch_time, 2)}
     mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
@@ -221,8 +225,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
             metrics.write_header(metrics_path)
     env_steps = done_chunks * trainer.steps_per_chunk
     if primary:
-        from tensorboardX import SummaryWriter
-        writer = SummaryWriter(str(run_dir / runs.TB_DIR), purge_step=env_steps if resume else None)
+        writer = tensorboard.result().SummaryWriter(str(run_dir / runs.TB_DIR), purge_step=env_steps if resume else None)
     else:
         writer = _NoWriter()
     last_eval = metrics.eval_success(last_rows)
@@ -297,6 +300,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         if not resume:
             evaluate(state, 0)
             evals.done()
+        startup["launch_to_training_s"] = round(time.time() - launch_time, 2)  # initialised, evaluated at step 0
         state, done_chunks, status = run_chunks(
             trainer, programs.chunk, state, done_chunks, hooks, evals, saves, interrupt, get=placement.get,
             any_process=placement.any_process, num_seeds=len(seeds), stop_after_chunks=stop_after_chunks)
