@@ -1,0 +1,60 @@
+"""The table of benchmarks/ab_launches.sh: per launch, start-up (startup.json), the median env
+steps/s of the learning chunks (from the trainer's log), seconds per
+evaluation interval after the first (6 chunks of 409,600 env steps and one evaluation: the
+steady-state pace), and time to 90 % both ways; medians per version.
+
+    python3 benchmarks/ab_summary.py benchmarks/results/h100/top_floor_rebuild > .../summary.md
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import json
+import os
+import re
+import statistics
+import sys
+
+
+def chunk_steps_per_s(log: str) -> float:
+    """Median env steps/s of the chunks that learned on every iteration (the trainer's --no-progress
+    lines that give an ETA), evaluations excluded."""
+    rates = [float(m.group(1).replace(",", "")) for line in open(log)
+             if "ETA" in line and "once learning" not in line
+             for m in [re.match(r"[\d,]+ steps\s+([\d,]+) steps/s", line)] if m]
+    return statistics.median(rates)
+
+
+def launch(run_dir: str, ttt: dict, log: str) -> dict:
+    rows = list(csv.DictReader(open(os.path.join(run_dir, "metrics.csv"))))
+    wall = [float(r["wall_time_s"]) for r in rows]
+    start = json.load(open(os.path.join(run_dir, "startup.json")))
+    seed = ttt["seeds"][0]
+    return {"launch": os.path.basename(run_dir), "compile_s": start["compile_s"],
+            "launch_to_first_chunk_s": start["launch_to_first_chunk_s"],
+            "chunk_steps_per_s": chunk_steps_per_s(log),
+            "interval_s": statistics.median([b - a for a, b in zip(wall[1:-1], wall[2:])]),
+            "time_to_90_s": seed["time_to_target_s"], "env_steps_at_90": seed["env_steps_at_target"]}
+
+
+def main(dirs: list[str]) -> None:
+    by_side: dict[str, list[dict]] = {"old": [], "new": []}
+    for d in dirs:
+        for side in by_side:
+            for path in sorted(glob.glob(os.path.join(d, side, f"time_to_success_{side}_s*.json"))):
+                ttt = json.load(open(path))
+                run = os.path.join(d, f"runs_{side}", os.path.basename(ttt["seeds"][0]["run_dir"]))
+                by_side[side].append(launch(run, ttt, path.replace(".json", f"_seed{ttt['seeds'][0]['seed']}.log")))
+    cols = ["launch", "compile_s", "launch_to_first_chunk_s", "chunk_steps_per_s", "interval_s", "time_to_90_s",
+            "env_steps_at_90"]
+    print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
+    for side, rows in by_side.items():
+        for r in rows:
+            print("| " + " | ".join(str(round(r[c], 2) if isinstance(r[c], float) else r[c]) for c in cols) + " |")
+        med = {c: statistics.median([r[c] for r in rows if r[c] is not None]) for c in cols[1:]}
+        print(f"| **{side}: median of {len(rows)}** | " + " | ".join(f"{med[c]:.2f}" for c in cols[1:]) + " |")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
