@@ -6,7 +6,10 @@
     python -m docrl_jax.evaluate --curves runs/docrl_d runs/docrl_s --out results/curves
 
 The protocol itself: `docrl_jax.evaluate.protocol`; the rollout and per-trial metrics: `rollout`;
-statistics, tables and output files: `tables`.
+statistics, tables and output files: `tables`. This module is the command alone: its arguments,
+their checks (each bad input one line, before anything compiles) and which policies of which runs
+are evaluated; it is a little over the package's ~350-line guide because each of the three inputs
+(--policy, --run, --curves) brings its own checks.
 """
 
 from __future__ import annotations
