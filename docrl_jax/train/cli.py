@@ -124,14 +124,60 @@ def _barrier(name: str) -> None:
         multihost_utils.sync_global_devices(name)
 
 
-class _ProgressPanel:
-    """The progress bar with the latest statistics on a line of their own (they do not fit beside it)."""
+class _Display:
+    """The progress bar with the latest statistics on a line of their own (they do not fit beside it),
+    or with --no-progress one printed line per chunk (logs, batch jobs)."""
 
-    def __init__(self, progress: Progress):
-        self.progress, self.line = progress, "waiting for the first chunk (compiling)"
+    def __init__(self, console: Console, name: str, total: int, done: int, show_progress: bool):
+        self.console, self.show_progress = console, show_progress
+        self.progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
+                                 TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"),
+                                 TextColumn("{task.fields[sps]}"), TextColumn("{task.fields[eta]}"), console=console)
+        self.task = self.progress.add_task(name, total=total, completed=done, sps="", eta="ETA once learning starts")
+        self.line = "waiting for the first chunk"
 
     def __rich__(self):
         return Group(self.progress.get_renderable(), Text(self.line))
+
+    def live(self):
+        return Live(self, console=self.console, refresh_per_second=4) if self.show_progress else contextlib.nullcontext()
+
+    def chunk(self, steps: int, sps: float, eta: str, line: str) -> None:
+        self.progress.update(self.task, completed=steps, sps=f"{sps:,.0f} steps/s", eta=eta)
+        self.line = line
+        if not self.show_progress:
+            self.console.print(f"{steps:,} steps  {sps:,.0f} steps/s  {eta}  {line}")
+
+
+def _resume(mngr, state_shape, placement, trainer, metrics_path: Path, console: Console, primary: bool):
+    """The newest intact checkpoint's runner state and bookkeeping; damaged newer checkpoints are
+    named, skipped and set aside. Returns (state, chunks done, wall seconds before, pending
+    statistics, best policies or None, the metrics.csv rows of the last evaluation kept)."""
+    t_cfg = trainer.config.train
+    restored = checkpoint.restore_newest_intact(
+        mngr, state_shape, placement.seed_sharding,
+        best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None)
+    for step, reason in restored.skipped:
+        console.print(f"[yellow]skipped checkpoint {step}:[/] {reason}")
+    if restored.skipped:  # out of the way of the steps the resumed run writes again; nothing deleted
+        if primary:
+            aside = checkpoint.set_aside(mngr, [step for step, _ in restored.skipped])
+            console.print(f"moved the skipped checkpoint(s) to {aside}")
+        _barrier("docrl_jax.train.cli.set_aside")
+        mngr.reload()
+    step, state, meta = restored.step, restored.state, restored.meta
+    done_chunks = meta["chunk"]
+    if done_chunks * trainer.steps_per_chunk != meta["env_steps"]:
+        raise RunDirError(f"checkpoint {step} was written with another chunk size; train.log_every and "
+                          f"env.num_envs cannot change on resume")
+    # A checkpoint from before best-policy tracking starts it afresh at the next evaluation.
+    best = best_policy.from_meta(placement.get(restored.best), meta["best"]) if restored.best is not None else None
+    # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
+    state = state.replace(total_steps=placement.put_seeds(
+        np.full(state.total_steps.shape, trainer.total_env_steps, np.int32)))
+    last_rows = metrics.truncate_metrics(metrics_path, step) if primary else []
+    console.print(f"resumed from env step {step:,} (chunk {done_chunks}/{trainer.num_chunks})")
+    return state, done_chunks, meta["wall_time_s"], meta["pending"], best, last_rows
 
 
 class _NoWriter:
@@ -194,30 +240,8 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     total = placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32))
 
     if resume:
-        restored = checkpoint.restore_newest_intact(
-            mngr, programs.state_shape, placement.seed_sharding,
-            best_shape=programs.state_shape.agent.actor_average if t_cfg.track_best_policy else None)
-        for step, reason in restored.skipped:
-            console.print(f"[yellow]skipped checkpoint {step}:[/] {reason}")
-        if restored.skipped:  # out of the way of the steps the resumed run writes again; nothing deleted
-            if primary:
-                aside = checkpoint.set_aside(mngr, [step for step, _ in restored.skipped])
-                console.print(f"moved the skipped checkpoint(s) to {aside}")
-            _barrier("docrl_jax.train.cli.set_aside")
-            mngr.reload()
-        step, state, meta = restored.step, restored.state, restored.meta
-        done_chunks, wall_before, pending = meta["chunk"], meta["wall_time_s"], meta["pending"]
-        # A checkpoint from before best-policy tracking starts it afresh at the next evaluation.
-        best = (best_policy.from_meta(placement.get(restored.best), meta["best"])
-                if restored.best is not None else None)
-        if done_chunks * trainer.steps_per_chunk != meta["env_steps"]:
-            raise RunDirError(f"checkpoint {step} was written with another chunk size; train.log_every and "
-                              f"env.num_envs cannot change on resume")
-        # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
-        state = state.replace(total_steps=placement.put_seeds(
-            np.full(state.total_steps.shape, trainer.total_env_steps, np.int32)))
-        last_rows = metrics.truncate_metrics(metrics_path, step) if primary else []
-        console.print(f"resumed from env step {step:,} (chunk {done_chunks}/{trainer.num_chunks})")
+        state, done_chunks, wall_before, pending, best, last_rows = _resume(
+            mngr, programs.state_shape, placement, trainer, metrics_path, console, primary)
     else:
         state = programs.init(keys, total)
         done_chunks, wall_before, pending, best, last_rows = 0, 0.0, metrics.empty_pending(len(seeds)), None, []
@@ -260,7 +284,6 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         checkpoint.save(mngr, steps, state, state.agent.actor_average, meta, best_params)
 
     def check(m: dict, steps_before: int) -> bool:
-        nonlocal pending
         bad = np.asarray(m["nonfinite_iter"])
         if np.any(bad >= 0):
             i = int(np.argmax(bad >= 0))
@@ -273,28 +296,19 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         metrics.accumulate(pending, m)
         return True
 
-    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
-                        TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"), TextColumn("{task.fields[sps]}"),
-                        TextColumn("{task.fields[eta]}"), console=console)
-    task = progress.add_task(config.name, total=trainer.total_env_steps, completed=env_steps, sps="",
-                             eta="ETA once learning starts")
-    panel = _ProgressPanel(progress)
+    display = _Display(console, config.name, trainer.total_env_steps, env_steps, show_progress)
 
     def show(m: dict, steps: int, sps: float, eta: str):
         if primary and not startup.get("launch_to_first_chunk_s"):  # start-up as a user sees it
             startup.update(launch_to_first_chunk_s=round(time.time() - launch_time, 2), device=device_line())
             (run_dir / runs.STARTUP_FILE).write_text(json.dumps(startup, indent=1))
         metrics.log_chunk(writer, m, steps, sps)
-        progress.update(task, completed=steps, sps=f"{sps:,.0f} steps/s", eta=eta)
-        panel.line = metrics.stats_line(m, last_eval)
-        if not show_progress:
-            console.print(f"{steps:,} steps  {sps:,.0f} steps/s  {eta}  {panel.line}")
+        display.chunk(steps, sps, eta, metrics.stats_line(m, last_eval))
 
     hooks = Hooks(check=check, evaluate=evaluate, show=show, save=save)  # save is collective: every process
     evals = Cadence(t_cfg.eval_every, t_cfg.eval_every_minutes)
     saves = Cadence(t_cfg.checkpoint_every, t_cfg.checkpoint_every_minutes)
-    with Interrupt(console) as interrupt, (Live(panel, console=console, refresh_per_second=4)
-                                           if show_progress else contextlib.nullcontext()):
+    with Interrupt(console) as interrupt, display.live():
         newest = mngr.latest_step()
         interrupt.newest = "none yet" if newest is None else f"env step {newest:,}"
         if not resume:

@@ -40,7 +40,6 @@ rows are independent of the others); the table marks it as diverged.
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import itertools
 import json

@@ -94,7 +94,6 @@ def multi(out: Path) -> int:
 
     from docrl_jax import sharding
     from docrl_jax.train import cli
-    from docrl_jax.train.programs import compile_programs
     sharding.initialize_distributed()
     assert jax.process_count() == 2 and len(jax.devices()) == 4 and len(jax.local_devices()) == 2
     run_dir = out / "multi"

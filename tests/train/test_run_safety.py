@@ -15,11 +15,10 @@ import signal
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import pytest
 from _trainer_common import easy_config, finished_run, tmp_dir
 
-from docrl_jax import checkpoint, runs
+from docrl_jax import checkpoint
 from docrl_jax.errors import RunDirError
 from docrl_jax.train import cli, load_policy, loop
 
