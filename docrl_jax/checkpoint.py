@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 
-from docrl_jax.errors import RunDirError
+from docrl_jax.errors import RunDirError, short_reason
 
 CHECKPOINT_DIR = "checkpoints"
 DAMAGED_DIR = "checkpoints_damaged"   # where a resume moves the checkpoints it could not read
@@ -114,21 +114,6 @@ def _os_error(e: BaseException | None) -> OSError | None:
         seen.add(id(e))
         e = e.__cause__ or e.__context__
     return None
-
-
-def os_error_line(e: OSError) -> str:
-    """One line for a file-system error: the path and the cause ('/x/metrics.csv: No space left on device')."""
-    if isinstance(e, CheckpointWriteError):
-        return e.strerror
-    what = e.strerror or short_reason(e)
-    return f"{e.filename}: {what}" if e.filename else what
-
-
-def short_reason(e: BaseException, limit: int = 200) -> str:
-    """The first line of an exception, shortened: Orbax and TensorStore errors carry pages of spec."""
-    text = (str(e).strip().splitlines() or [""])[0]
-    text = text if len(text) <= limit else text[:limit] + " ..."
-    return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
 def latest_step(run_dir: str | Path) -> int | None:

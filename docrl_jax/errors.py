@@ -1,5 +1,6 @@
 """The package's error types, in a module of their own so that every layer (config loading, device
-placement, run directories) can raise them without importing the others."""
+placement, run directories) can raise them without importing the others; and the two one-line
+forms every command prints errors in (no page of traceback or TensorStore spec)."""
 
 
 class ConfigError(ValueError):
@@ -8,3 +9,16 @@ class ConfigError(ValueError):
 
 class RunDirError(ValueError):
     """A run directory is missing, incomplete or incompatible; the message says which and why."""
+
+
+def short_reason(e: BaseException, limit: int = 200) -> str:
+    """The first line of an exception, shortened: Orbax and TensorStore errors carry pages of spec."""
+    text = (str(e).strip().splitlines() or [""])[0]
+    text = text if len(text) <= limit else text[:limit] + " ..."
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+def os_error_line(e: OSError) -> str:
+    """One line for a file-system error: the path and the cause ('/x/metrics.csv: No space left on device')."""
+    what = e.strerror or short_reason(e)
+    return f"{e.filename}: {what}" if e.filename else what

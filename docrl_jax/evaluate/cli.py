@@ -27,7 +27,7 @@ import numpy as np
 import yaml
 
 from docrl_jax import runs
-from docrl_jax.errors import RunDirError
+from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax.evaluate import rollout
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, NOMINAL_YAW, SCENARIOS, TrialSpec
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, markdown_table, trial_table, write_outputs
@@ -282,6 +282,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         cfg = validate_args(args)
     except (UsageError, RunDirError) as e:
         parser.error(str(e))  # exits with status 2 and the usage line
+    try:
+        return _evaluate(args, cfg, parser, argv)
+    except OSError as e:  # an output folder that cannot be written: one line, as the other bad inputs
+        print(f"error: {os_error_line(e)}", file=sys.stderr)
+        return 2
+
+
+def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int:
+    """Runs what the checked arguments ask for: curves, then the protocol's trials; writes the outputs."""
     out_dir = cfg["out"]
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)

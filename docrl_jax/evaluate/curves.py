@@ -138,7 +138,7 @@ def add_command(sub) -> None:
     cv = sub.add_parser("curves", help="learning curves from run dirs or metrics.csv files")
     cv.add_argument("runs", nargs="+")
     cv.add_argument("--labels", help="comma-separated labels, one per run (same label = pooled seeds)")
-    cv.add_argument("--out", default=".", help="directory for learning_curves.png (default: the current one)")
+    cv.add_argument("--out", required=True, help="directory for learning_curves.png")
 
 
 def run_command(args) -> None:

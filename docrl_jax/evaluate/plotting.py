@@ -287,7 +287,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     f3.add_argument("--scenario", type=int, default=2, choices=(1, 2, 3))
     f3.add_argument("--trajectories", type=int, default=3)
     f3.add_argument("--seed-index", type=int, default=None)
-    f3.add_argument("--out", default="figure3.png")
+    f3.add_argument("--out", required=True, help="the figure file to write, e.g. figure3.png")
     curves.add_command(sub)
     args = p.parse_args(argv)
     try:

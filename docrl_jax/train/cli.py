@@ -33,7 +33,7 @@ from rich.text import Text
 
 from docrl_jax import checkpoint, memory, runs, sharding
 from docrl_jax.config import Config, load_config, to_yaml
-from docrl_jax.errors import ConfigError, RunDirError
+from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, Cadence, Hooks,
                                   Interrupt, make_console, run_chunks)
@@ -206,7 +206,7 @@ def run(config: Config, run_dir: str | Path, resume: bool = False, console: Cons
         console.print(f"[bold red]error:[/] {e}")
         return EXIT_CONFIG
     except OSError as e:
-        console.print(f"[bold red]error:[/] {checkpoint.os_error_line(e)}")
+        console.print(f"[bold red]error:[/] {os_error_line(e)}")
         return EXIT_CONFIG
     except KeyboardInterrupt:
         newest = checkpoint.latest_step(run_dir)

@@ -51,10 +51,9 @@ import numpy as np
 import yaml
 
 from docrl_jax import memory, runs, sharding
-from docrl_jax.checkpoint import os_error_line
 from docrl_jax.algorithms.common import HPARAM_KEYS, HParams, hparams_neutral
 from docrl_jax.config import Config, field_docs, load_config, parse_overrides, to_yaml, validate
-from docrl_jax.errors import ConfigError, RunDirError
+from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import metrics
 from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Hooks, Interrupt, make_console, run_chunks
 from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys

@@ -394,6 +394,23 @@ def test_figure3_and_plotting_cli(tmp_path, oracle_trials, dive_trials):
         plotting.main(["figure3", str(tmp_path / "oracle"), "--scenario", "2", "--out", str(tmp_path / "g.png")])
 
 
+@pytest.mark.parametrize("argv", [["figure3", "results/a", "--scenario", "2"], ["curves", "runs/a"]])
+def test_plotting_commands_write_nowhere_unasked(argv, tmp_path, monkeypatch, capsys):
+    """No figure lands in the current directory by default: --out is required."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as e:
+        plotting.main(argv)
+    assert e.value.code == 2 and "--out" in capsys.readouterr().err and not list(tmp_path.iterdir())
+
+
+def test_an_unwritable_out_is_one_line(tmp_path, capsys, no_compile):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert cli.main(["--policy", "bba", "--trials", "2", "--out", str(blocker / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(blocker) in err[0] and "Not a directory" in err[0]
+
+
 def test_aggregate_seeds_pools_exactly():
     rng = np.random.default_rng(0)
     samples = [rng.normal(10, 2, 7), rng.normal(14, 1, 3), np.array([])]   # seed 2: no successes
