@@ -1,7 +1,7 @@
 """Seeds over devices and processes.
 
 Every array of a run's state has the seeds as its leading axis (`train.num_seeds`). On one device
-the programs (`docrl_jax.cli.programs`) vmap over that axis, or run the unbatched program for one
+the programs (`docrl_jax.train.programs`) vmap over that axis, or run the unbatched program for one
 seed. On D > 1 devices the axis is split over a one-axis mesh named 'seed'
 (`Mesh(devices, ('seed',))`, arrays placed with `NamedSharding(mesh, P('seed'))`) and the programs
 run under `jax.shard_map`: each device trains its num_seeds / D seeds, vmapped, or unbatched when it
