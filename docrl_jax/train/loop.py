@@ -207,11 +207,13 @@ def run_chunks(trainer, chunk: Callable, state, done_chunks: int, hooks: Hooks, 
         prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
         eta.add_chunk(dt, learning=int(np.min(m["learn_iters"])) >= trainer.iters_per_chunk)
         final = done_chunks == trainer.num_chunks
-        if final or evals.due(prev, env_steps):
+        # Every decision below is agreed over the processes (`any_process`): the evaluation and the
+        # save are collective, and each process's wall clock would decide the minutes cadences alone.
+        if final or any_process(evals.due(prev, env_steps)):
             timed_eval(state, env_steps)
         interrupt.poll()
         stop = any_process(interrupt.requested) or (stop_after_chunks is not None and this_call >= stop_after_chunks)
-        if hooks.save is not None and (final or stop or saves.due(prev, env_steps)):
+        if hooks.save is not None and (final or stop or any_process(saves.due(prev, env_steps))):
             with interrupt.saving():
                 hooks.save(state, env_steps, done_chunks)
             saves.done()
