@@ -11,6 +11,11 @@ class RunDirError(ValueError):
     """A run directory is missing, incomplete or incompatible; the message says which and why."""
 
 
+class ExportError(ValueError):
+    """A policy export cannot be written as asked (an --out that holds one, an artefact that fails its
+    check); the message says which and what to do."""
+
+
 def short_reason(e: BaseException, limit: int = 200) -> str:
     """The first line of an exception, shortened: Orbax and TensorStore errors carry pages of spec."""
     text = (str(e).strip().splitlines() or [""])[0]

@@ -1,0 +1,79 @@
+"""`python -m docrl_jax.export`: a trained run's actor as deployment artefacts (docs/DEPLOY.md).
+
+    python -m docrl_jax.export --run runs/d --out export/d
+    python -m docrl_jax.export --run runs/d --seed-index 2 --which best --out export/d2_best
+    python -m docrl_jax.export --run runs/d --out export/d --formats stablehlo,numpy --force
+
+Bad input (a missing run, a seed index the run does not have, --which best on a run that kept no
+best policy, an --out that cannot be written or already holds an export, the ONNX format without
+its packages) is one line on stderr and exit status 2, before anything is converted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Sequence
+
+from docrl_jax.errors import ExportError, RunDirError, os_error_line
+from docrl_jax.export.artefacts import DEFAULT_OPSET, FORMATS
+
+PROG = "python -m docrl_jax.export"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from docrl_jax.policy import CHECKPOINT_POLICIES
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--run", metavar="RUN_DIR", required=True,
+                   help="a trainer run directory (config.yaml + checkpoints)")
+    p.add_argument("--seed-index", type=int, default=0, help="which seed of the run (default 0)")
+    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
+                   help="the final policy of the latest checkpoint (default) or the seed's best evaluated one")
+    p.add_argument("--out", metavar="DIR", required=True, help="output directory (created)")
+    p.add_argument("--force", action="store_true", help="replace an export already in --out")
+    p.add_argument("--formats", default=",".join(FORMATS),
+                   help=f"comma-separated, of {', '.join(FORMATS)} (default all three)")
+    p.add_argument("--opset", type=int, default=DEFAULT_OPSET, help=f"ONNX opset (default {DEFAULT_OPSET})")
+    p.add_argument("--platforms", default="cpu",
+                   help="platforms the StableHLO artefact is lowered for, comma-separated (default cpu; "
+                        "e.g. cpu,cuda for a GPU host too)")
+    return p
+
+
+def _fail(message: str) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from docrl_jax.export import check_formats, export_policy
+    formats = [f.strip() for f in args.formats.split(",") if f.strip()]
+    platforms = tuple(p.strip() for p in args.platforms.split(",") if p.strip())
+    try:
+        if args.seed_index < 0:
+            raise ExportError(f"--seed-index {args.seed_index}: must be >= 0")
+        if not platforms:
+            raise ExportError("--platforms: give at least one, e.g. cpu")
+        check_formats(formats)
+        result = export_policy(args.run, args.out, seed_index=args.seed_index, which=args.which, formats=formats,
+                               force=args.force, opset=args.opset, platforms=platforms)
+    except (RunDirError, ExportError, ImportError) as e:
+        return _fail(str(e))
+    except OSError as e:   # an --out that cannot be made or written
+        return _fail(os_error_line(e))
+    check = result["check"]["max_abs_action_diff"]
+    print(f"{result['source']['policy']} ({result['policy']['config']}) -> {args.out}")
+    for name, entry in result["files"].items():
+        files = entry if isinstance(entry, str) else ", ".join(
+            v for k, v in entry.items() if k in ("file", "weights", "loader"))
+        diff = check.get(name)
+        note = "" if diff is None else (f"  (max |action - JAX| {diff:.1e} over {result['check']['steps']} steps)"
+                                        if isinstance(diff, float) else f"  ({diff})")
+        print(f"  {name}: {files}{note}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
