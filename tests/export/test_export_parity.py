@@ -1,0 +1,166 @@
+"""The exported artefacts act as the JAX policy does on the environment: 1,000 steps of scenario 2
+driven by the JAX policy (episodes restarted on done, the carry zeroed at each start), then the same
+observations fed to the ONNX, StableHLO and NumPy artefacts step by step, each carrying its own
+carry: every action within 1e-5 of the JAX policy's, for the trained td3_lstm and sac_lstm policies
+and an MLP actor. Also: the observation as DEPLOY.md and examples/deploy_node.py build it from the
+sensors and the pose is the env's own, and the example's 5 Hz node flies the exported policy."""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import docrl_jax.envs as envs
+from docrl_jax.algorithms import make_agent
+from docrl_jax.config import load_config
+from docrl_jax.export import FORMATS, export_actor, export_policy
+from docrl_jax.export import cli as export_cli
+from docrl_jax.export.runners import open_artefact
+from docrl_jax.policy import Policy
+from docrl_jax.runs import load_policy
+
+ROOT = Path(__file__).resolve().parents[2]
+TRAINED = ROOT / "tests" / "data" / "trained"
+EXAMPLE = ROOT / "examples" / "deploy_node.py"
+STEPS = 1000
+TOLERANCE = 1e-5
+INFO_KEYS = ("ranges", "underwater", "position", "yaw", "goal")
+
+
+@pytest.fixture(scope="module")
+def env_step():
+    env = envs.make(2)
+    return jax.jit(env.reset), jax.jit(env.step)
+
+
+def _fresh_mlp_policy() -> tuple[Policy, object]:
+    """A freshly initialised ddpg_mlp actor, as load_policy would give it (zero placeholder carry)."""
+    config = load_config("ddpg_mlp", backend="cpu")
+    agent = make_agent(config)
+    params = jax.jit(agent.actor.init)(jax.random.PRNGKey(3), agent.actor.init_carry(()), jnp.zeros(26))
+
+    def act(params, carry, obs, info, key):
+        return agent.act(params, agent.actor.init_carry(()), obs)
+    return Policy("ddpg_mlp", params, lambda: agent.actor.init_carry(()), act), config
+
+
+def _rollout(env_step, policy: Policy, steps: int = STEPS, seed: int = 0) -> dict[str, np.ndarray]:
+    """The JAX policy acting on the env: observations, its actions, episode-start flags and the info
+    the observation was made from."""
+    reset, step = env_step
+    act = jax.jit(policy.act)
+    key, k = jax.random.split(jax.random.PRNGKey(seed))
+    state, start = reset(k), True
+    out = {name: [] for name in ("obs", "action", "start", *INFO_KEYS)}
+    for _ in range(steps):
+        if start:
+            carry = policy.init_carry()
+        carry, action = act(policy.params, carry, state.obs, state.info, None)
+        out["obs"].append(state.obs), out["action"].append(action), out["start"].append(start)
+        for name in INFO_KEYS:
+            out[name].append(state.info[name])
+        state = step(state, action)
+        start = bool(state.done)
+        if start:
+            key, k = jax.random.split(key)
+            state = reset(k)
+    return {name: np.asarray(values) for name, values in out.items()}
+
+
+def _replay(export_dir: Path, fmt: str, rollout: dict) -> np.ndarray:
+    """The artefact's actions on the rollout's observations, its carry zeroed at each episode start."""
+    runner = open_artefact(export_dir, fmt)
+    actions = []
+    for obs, start in zip(rollout["obs"], rollout["start"]):
+        if start:
+            carry = runner.initial_carry()
+        action, carry = runner.step(obs[None], carry)
+        actions.append(action[0])
+    return np.asarray(actions)
+
+
+@pytest.fixture(scope="module")
+def exports(env_step, tmp_path_factory):
+    """(rollout, export dir) per policy: td3_lstm through the command, sac_lstm through export_policy,
+    the fresh MLP through export_actor."""
+    root = tmp_path_factory.mktemp("exports")
+    out = {}
+    td3 = load_policy(TRAINED / "td3_lstm")
+    assert export_cli.main(["--run", str(TRAINED / "td3_lstm"), "--out", str(root / "td3_lstm")]) == 0
+    out["td3_lstm"] = (_rollout(env_step, td3, seed=0), root / "td3_lstm")
+    sac = load_policy(TRAINED / "sac_lstm")
+    export_policy(TRAINED / "sac_lstm", root / "sac_lstm")
+    out["sac_lstm"] = (_rollout(env_step, sac, seed=1), root / "sac_lstm")
+    mlp, config = _fresh_mlp_policy()
+    export_actor(config, mlp.params, root / "ddpg_mlp", source={"fresh": "ddpg_mlp, PRNGKey(3)"})
+    out["ddpg_mlp"] = (_rollout(env_step, mlp, seed=2), root / "ddpg_mlp")
+    return out
+
+
+@pytest.mark.parametrize("name", ["td3_lstm", "sac_lstm", "ddpg_mlp"])
+def test_every_artefact_matches_the_jax_policy_at_every_step(exports, name):
+    rollout, export_dir = exports[name]
+    starts = int(rollout["start"].sum())
+    assert starts >= 2, "the rollout must cross an episode start (the carry reset)"
+    for fmt in FORMATS:
+        actions = _replay(export_dir, fmt, rollout)
+        worst = np.abs(actions - rollout["action"]).max(axis=-1)
+        assert worst.max() <= TOLERANCE, (f"{name} {fmt}: step {int(worst.argmax())} differs by {worst.max():.2e} "
+                                          f"from the JAX policy")
+
+
+def test_the_trained_rollouts_see_both_media(exports):
+    """The parity above covers the LIDAR (air) and the sonar (underwater) observations."""
+    for name in ("td3_lstm", "sac_lstm"):
+        underwater = exports[name][0]["underwater"]
+        assert underwater.any() and not underwater.all(), name
+
+
+def _example_module():
+    spec = importlib.util.spec_from_file_location("deploy_node", EXAMPLE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_documented_observation_is_the_envs(exports):
+    """examples/deploy_node.py builds the observation from ranges, medium, previous action, position,
+    yaw and goal as DEPLOY.md describes; it is the env's observation at every step."""
+    rollout, export_dir = exports["td3_lstm"]
+    manifest = open_artefact(export_dir, "numpy").manifest
+    build = _example_module().build_observation
+    previous = np.zeros(3, np.float32)
+    for t in range(STEPS):
+        if rollout["start"][t]:
+            previous = np.zeros(3, np.float32)
+        obs = build(manifest, rollout["ranges"][t], bool(rollout["underwater"][t]), previous,
+                    rollout["position"][t], float(rollout["yaw"][t]), rollout["goal"][t])
+        np.testing.assert_allclose(obs, rollout["obs"][t], atol=2e-6, rtol=0, err_msg=f"step {t}")
+        previous = np.clip(rollout["action"][t], -1.0, 1.0)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_the_example_node_flies_the_exported_policy(exports, fmt):
+    """The timer-callback loop of examples/deploy_node.py: the trained td3_lstm export reaches the
+    goal of the air-to-water pair and of the water-to-air pair after it (a carry reset between)."""
+    node = _example_module().PolicyNode(exports["td3_lstm"][1], fmt)
+    for _ in range(200):
+        node.on_timer()
+    assert [(episode, end) for episode, end, _ in node.log[:2]] == [(0, "arrived"), (1, "arrived")], node.log
+
+
+def test_the_example_runs_without_jax_or_docrl_jax(exports):
+    """With the NumPy artefact the example needs numpy alone: jax, flax and docrl_jax cannot be imported."""
+    blocked = "import sys; sys.modules.update(dict.fromkeys(['jax', 'jaxlib', 'flax', 'docrl_jax']));"
+    argv = ["deploy_node.py", "--export", str(exports["td3_lstm"][1]), "--steps", "100"]
+    run = f"import runpy; sys.argv = {argv!r}; runpy.run_path({str(EXAMPLE)!r}, run_name='__main__')"
+    proc = subprocess.run([sys.executable, "-c", blocked + run], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "episode 0 (A-W): arrived" in proc.stdout and "100 callbacks with the numpy artefact" in proc.stdout
