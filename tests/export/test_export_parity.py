@@ -8,6 +8,8 @@ sensors and the pose is the env's own, and the example's 5 Hz node flies the exp
 from __future__ import annotations
 
 import importlib.util
+import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -146,8 +148,16 @@ def test_the_documented_observation_is_the_envs(exports):
         previous = np.clip(rollout["action"][t], -1.0, 1.0)
 
 
+@pytest.fixture
+def isolated_imports(monkeypatch):
+    """The example and DEPLOY.md import numpy_policy from an export directory put on sys.path."""
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    yield
+    sys.modules.pop("numpy_policy", None)
+
+
 @pytest.mark.parametrize("fmt", FORMATS)
-def test_the_example_node_flies_the_exported_policy(exports, fmt):
+def test_the_example_node_flies_the_exported_policy(exports, fmt, isolated_imports):
     """The timer-callback loop of examples/deploy_node.py: the trained td3_lstm export reaches the
     goal of the air-to-water pair and of the water-to-air pair after it (a carry reset between)."""
     node = _example_module().PolicyNode(exports["td3_lstm"][1], fmt)
@@ -164,3 +174,20 @@ def test_the_example_runs_without_jax_or_docrl_jax(exports):
     proc = subprocess.run([sys.executable, "-c", blocked + run], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "episode 0 (A-W): arrived" in proc.stdout and "100 callbacks with the numpy artefact" in proc.stdout
+
+
+def test_the_python_blocks_of_deploy_md_run(exports, tmp_path, monkeypatch, isolated_imports):
+    """docs/DEPLOY.md's ONNX, StableHLO and NumPy snippets, run as written against export/td3_lstm,
+    give the same action."""
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "DEPLOY.md").read_text(), re.S)
+    assert len(blocks) == 3
+    shutil.copytree(exports["td3_lstm"][1], tmp_path / "export" / "td3_lstm")
+    monkeypatch.chdir(tmp_path)
+    actions = []
+    for block in blocks:
+        namespace: dict = {}
+        exec(compile(block, "docs/DEPLOY.md", "exec"), namespace)
+        actions.append(np.asarray(namespace["action"]))
+    assert actions[0].shape == (1, 3)
+    for action in actions[1:]:
+        np.testing.assert_allclose(action, actions[0], atol=1e-5, rtol=0)
