@@ -16,6 +16,23 @@ class ExportError(ValueError):
     check); the message says which and what to do."""
 
 
+class RenderError(RuntimeError):
+    """MuJoCo's renderer cannot run here (no OpenGL backend could be loaded); `no_gl` words it."""
+
+    @classmethod
+    def no_gl(cls, reason: str) -> "RenderError":
+        """The error of a renderer that could not start: why, MUJOCO_GL and its valid values."""
+        import os
+        return cls(f"MuJoCo's renderer could not create an OpenGL context (MUJOCO_GL="
+                   f"{os.environ.get('MUJOCO_GL') or 'unset'}: {reason}); set MUJOCO_GL, before Python starts, "
+                   f"to one of {', '.join(GL_BACKENDS)} (egl: headless, a GPU driver or Mesa; osmesa: software, "
+                   f"libOSMesa; glfw: a display) and install that library")
+
+
+# The values of MUJOCO_GL a user chooses between (MuJoCo also takes glx, and 'disable').
+GL_BACKENDS = ("egl", "osmesa", "glfw")
+
+
 def short_reason(e: BaseException, limit: int = 200) -> str:
     """The first line of an exception, shortened: Orbax and TensorStore errors carry pages of spec."""
     text = (str(e).strip().splitlines() or [""])[0]
