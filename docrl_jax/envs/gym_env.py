@@ -29,6 +29,14 @@ with its mask `_k` (all True at the top level: every env reports every key).
 
 Seeding: `reset(seed=s)` seeds the env's NumPy generator, from which the JAX key of the reset is
 drawn, so `reset(seed=s)` and the steps after it are reproducible; `reset()` continues the stream.
+
+Rendering: `render_mode="rgb_array"` (`gym.make(ENV_ID, render_mode="rgb_array")`, so that
+`gymnasium.wrappers.RecordVideo` works; it needs moviepy) makes `render()` return a frame
+(H, W, 3) uint8 by MuJoCo's renderer (docrl_jax/envs/rendering.py): of the latest step (the
+transition's own next state, with the path since the reset), or for `HUAUVVectorEnv` a tuple with one
+frame per env of its current state. `render_camera` ("both", "follow", "overview"), `render_width` and
+`render_height` choose the view; `metadata["render_fps"]` = 5 plays control steps in real time.
+`close()` releases the renderer's OpenGL context.
 """
 
 from __future__ import annotations
@@ -50,6 +58,8 @@ import docrl_jax.envs as envs
 from docrl_jax.envs.huauv import ACTION_SIZE, OBS_LAYOUT, OBS_SIZE
 
 ENV_ID = "docrl_jax/HUAUV-v0"
+RENDER_MODES = ["rgb_array"]
+RENDER_FPS = 5   # one frame per control step (0.2 s) plays in real time
 
 
 def observation_space() -> spaces.Box:
@@ -95,7 +105,7 @@ def _programs(scenario: int, overrides: dict[str, Any], compiler_options: dict[s
         nxt = jax.tree.map(lambda f, s: jnp.where(stepped.done, f, s), fresh, stepped)
         out = {"obs": nxt.obs, "reward": stepped.reward, "terminated": terminated, "truncated": truncated,
                "info": nxt.info}
-        final = {"obs": stepped.obs, "info": info}
+        final = {"obs": stepped.obs, "info": info, "qpos": stepped.sim.data.qpos}   # qpos: for render()
         return nxt, out, final
 
     programs = (env, jax.jit(reset, compiler_options=compiler_options),
@@ -116,6 +126,28 @@ def _keys(seed_source: np.random.Generator, num: int) -> jax.Array:
     return jax.random.split(jax.random.PRNGKey(int(seed_source.integers(0, 2**31 - 1))), num)
 
 
+class _Rendering:
+    """The adapters' `render_mode`: checks it, and holds MuJoCo's renderer once it is first used."""
+
+    def __init__(self, env, render_mode: str | None, camera: str, width: int, height: int):
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode={render_mode!r}: valid render modes are {RENDER_MODES} (or None)")
+        self.env, self.mode, self.args = env, render_mode, (camera, width, height)
+        self._renderer = None
+
+    def frame(self, qpos, infos: list[dict]) -> np.ndarray:
+        from docrl_jax.envs import rendering
+        if self._renderer is None:
+            camera, width, height = self.args
+            self._renderer = rendering.Renderer(self.env.mj_model, self.env.params, width, height, camera)
+        return self._renderer.track_frame(rendering.track_from_infos(qpos, infos))
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
 # ------------------------------------------------------------------------------ vector env
 class HUAUVVectorEnv(VectorEnv):
     """`num_envs` HUAUV envs (`envs.make(scenario, **overrides)`) in one jitted vmapped step.
@@ -123,10 +155,11 @@ class HUAUVVectorEnv(VectorEnv):
     `compiler_options` go to `jax.jit` (XLA options): e.g. {"xla_backend_optimization_level": 0}
     compiles about twice as fast on a CPU, for short runs where compiling dominates."""
 
-    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": RENDER_MODES, "render_fps": RENDER_FPS}
 
     def __init__(self, num_envs: int = 1, scenario: int = 2, compiler_options: dict[str, Any] | None = None,
-                 **overrides: Any):
+                 render_mode: str | None = None, render_camera: str = "both", render_width: int = 640,
+                 render_height: int = 240, **overrides: Any):
         if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r}: must be an integer >= 1")
         if overrides.pop("auto_reset", False):
@@ -138,7 +171,8 @@ class HUAUVVectorEnv(VectorEnv):
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, self.num_envs)
         self.metadata = dict(type(self).metadata)
-        self.render_mode = None
+        self._rendering = _Rendering(self.env, render_mode, render_camera, render_width, render_height)
+        self.render_mode = render_mode
         self._state = None
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None):
@@ -185,21 +219,38 @@ class HUAUVVectorEnv(VectorEnv):
         """The batched JAX `EnvState` (after auto-reset), for inspection."""
         return self._state
 
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """With render_mode "rgb_array": one frame (H, W, 3) uint8 per env, of its current state."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() without a render_mode: make the env with render_mode='rgb_array'")
+            return None
+        if self._state is None:
+            raise RuntimeError("call reset() before render()")
+        qpos, info = jax.device_get((self._state.sim.data.qpos, self._state.info))
+        return tuple(self._rendering.frame(qpos[i], [{k: v[i] for k, v in info.items()}]) for i in range(self.num_envs))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self._rendering.close()
+
 
 # ------------------------------------------------------------------------------ single env
 class HUAUVGymEnv(gymnasium.Env):
     """One HUAUV env (`envs.make(scenario, **overrides)`), no auto-reset: after `terminated` or
     `truncated`, call `reset()` (stepping on raises). `compiler_options` as for HUAUVVectorEnv."""
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": RENDER_MODES, "render_fps": RENDER_FPS}
 
-    def __init__(self, scenario: int = 2, compiler_options: dict[str, Any] | None = None, **overrides: Any):
+    def __init__(self, scenario: int = 2, compiler_options: dict[str, Any] | None = None,
+                 render_mode: str | None = None, render_camera: str = "both", render_width: int = 640,
+                 render_height: int = 240, **overrides: Any):
         self._vec = HUAUVVectorEnv(1, scenario, compiler_options, **overrides)
         self.env = self._vec.env
         self.observation_space = observation_space()
         self.action_space = action_space()
-        self.render_mode = None
+        self._rendering = _Rendering(self.env, render_mode, render_camera, render_width, render_height)
+        self.render_mode = render_mode
         self._ended = False
+        self._seen: tuple[list, list] = ([], [])   # with a render_mode: poses and infos since the reset
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
@@ -208,7 +259,10 @@ class HUAUVGymEnv(gymnasium.Env):
         self._vec._state, out = self._vec._reset(_keys(self.np_random, 1))
         out = jax.device_get(out)
         self._ended = False
-        return np.array(out["obs"][0]), {k: np.array(v[0]) for k, v in out["info"].items()}
+        info = {k: np.array(v[0]) for k, v in out["info"].items()}
+        if self.render_mode is not None:
+            self._seen = ([np.asarray(self._vec._state.sim.data.qpos[0])], [info])
+        return np.array(out["obs"][0]), info
 
     def step(self, action):
         if self._ended:
@@ -220,8 +274,25 @@ class HUAUVGymEnv(gymnasium.Env):
         final = jax.device_get(final)     # the transition's own next obs and info (not the auto-reset's)
         terminated, truncated = bool(out["terminated"][0]), bool(out["truncated"][0])
         self._ended = terminated or truncated
-        return (np.array(final["obs"][0]), float(out["reward"][0]), terminated, truncated,
-                {k: np.array(v[0]) for k, v in final["info"].items()})
+        info = {k: np.array(v[0]) for k, v in final["info"].items()}
+        if self.render_mode is not None:
+            self._seen[0].append(np.asarray(final["qpos"][0]))
+            self._seen[1].append(info)
+        return np.array(final["obs"][0]), float(out["reward"][0]), terminated, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        """With render_mode "rgb_array": the frame (H, W, 3) uint8 of the latest state (the last
+        step's next state, or the reset's), with the path since the reset."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() without a render_mode: make the env with render_mode='rgb_array'")
+            return None
+        if not self._seen[0]:
+            raise RuntimeError("call reset() before render()")
+        return self._rendering.frame(np.stack(self._seen[0]), self._seen[1])
+
+    def close(self) -> None:
+        self._rendering.close()
+        super().close()
 
 
 gymnasium.register(id=ENV_ID, entry_point=HUAUVGymEnv, vector_entry_point=HUAUVVectorEnv)

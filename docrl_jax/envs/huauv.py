@@ -232,6 +232,14 @@ class HUAUVEnv:
                        step=step, key=key)
         return EnvState(sim=sim, obs=obs, reward=reward.astype(jnp.float32), done=done, info=info)
 
+    # ------------------------------------------------------------------ rendering
+    def render(self, states, camera: str = "both", width: int = 640, height: int = 240, **kwargs) -> np.ndarray:
+        """Frames (T, H, W, 3) uint8 of one env's `states` (a sequence of EnvState, or one EnvState
+        stacked over time) by MuJoCo's renderer: camera "follow", "overview" or "both" side by side;
+        `fan=False` hides the range fan, `overlay=False` the text (docrl_jax/envs/rendering.py)."""
+        from docrl_jax.envs import rendering
+        return rendering.render_states(self, states, camera, width, height, **kwargs)
+
     # ------------------------------------------------------------------ helpers
     def _observe(self, ranges, underwater, action, position, rot, goal):
         rel = goal - position

@@ -1,0 +1,374 @@
+"""MuJoCo's own renderer (`mujoco.Renderer`) for HUAUV scenes: what `HUAUVEnv.render`, the Gymnasium
+adapter's `render_mode="rgb_array"`, `python -m docrl_jax.render` and the trainer's TensorBoard videos draw.
+
+Two views, side by side (`camera="both"`) or one alone: `follow`, a camera behind the vehicle that
+turns with it (pulled in when a wall or an obstacle is between it and the vehicle), and `overview`,
+the whole tank from above one corner, with the walls nearest to it see-through. On top of the scene:
+the water as a translucent blue-green volume with its surface line drawn on the walls, a blue-green
+tint and fog over a view whose camera is under water, the goal (a translucent sphere of the arrival
+radius), the active range fan (LIDAR in air, sonar under water; `sensors.beam_directions`) with its
+hits, the path so far, rotor discs that show the vehicle's heading (red at the front), and a text
+overlay (step, medium, distance to the goal, outcome; Pillow's ImageDraw).
+
+Render-only: the decorations are extra geoms put into the renderer's scene after `update_scene`
+(`mjv_initGeom`, `mjv_connector`), and the lights, fog and buffer size are set on a copy of the
+env's MjModel; the MJCF that the physics and MJX's rays use is never changed.
+
+The OpenGL backend is chosen by MuJoCo when `mujoco` is first imported, from MUJOCO_GL;
+`docrl_jax/__init__.py` sets egl (or osmesa) on a Linux machine with no display when it is unset.
+When no context can be created, `Renderer` raises `RenderError` naming MUJOCO_GL and its values.
+"""
+
+from __future__ import annotations
+
+import copy
+import warnings
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import mujoco
+import numpy as np
+
+from docrl_jax.envs import sensors
+from docrl_jax.envs.params import EnvParams
+from docrl_jax.errors import RenderError, short_reason
+
+CAMERAS = ("both", "follow", "overview")
+
+TANK = 4.9                                   # inner wall faces at x, y = +-4.9 (huauv.TANK_HALF_WIDTH)
+WATER_RGBA = (0.05, 0.55, 0.6, 0.22)         # the water volume seen from above
+SURFACE_RGBA = (0.3, 0.95, 1.0, 1.0)         # the surface line on the walls
+TINT_RGB = np.array([20.0, 95.0, 105.0])     # blended over a view whose camera is under water
+TINT = 0.35
+GOAL_RGBA = (0.2, 0.95, 0.3, 0.35)
+LIDAR_RGBA = (1.0, 0.85, 0.1, 0.9)
+SONAR_RGBA = (1.0, 0.3, 0.85, 0.9)
+TRAIL_RGBA = (1.0, 1.0, 1.0, 0.8)
+FOLLOW = {"distance": 2.2, "elevation": -12.0}
+OVERVIEW = {"lookat": (0.0, 0.0, 0.2), "distance": 16.5, "azimuth": 120.0, "elevation": -42.0}
+_SOLIDS = np.array([0, 1, 0, 0, 0, 0], np.uint8)   # what the follow camera must not go through (group 1)
+
+
+def make_gl_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+    """`mujoco.Renderer`, or RenderError naming MUJOCO_GL when no OpenGL context can be created (no
+    library, no display for GLFW, a broken driver: the same to a user). GLFW explains itself in
+    warnings, which then go into the error's one line."""
+    error = None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            renderer = mujoco.Renderer(model, height, width)
+        except Exception as e:
+            error = e
+    if error is not None:
+        said = [str(w.message).strip() for w in caught][:1]
+        raise RenderError.no_gl("; ".join(said + [short_reason(error, 120)])) from None
+    for w in caught:   # a context that started: its warnings as usual
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return renderer
+
+
+@dataclass
+class Track:
+    """What is drawn of one trajectory, per frame (leading axis T): the pose and what the env knew."""
+    qpos: np.ndarray                      # (T, 7) position and quaternion (w, x, y, z)
+    goal: np.ndarray                      # (T, 3)
+    ranges: np.ndarray | None = None      # (T, 20) the ranges read (noise included); None: no fan
+    underwater: np.ndarray | None = None  # (T,) bool: the sensor used (sonar when true)
+    step: np.ndarray | None = None        # (T,) control steps since the start
+    distance: np.ndarray | None = None    # (T,) metres to the goal
+    status: Sequence[str] | None = None   # (T,) outcome text ("" while the trial goes on)
+    title: str = ""                       # first overlay line, e.g. the method and the trial
+
+    def __len__(self) -> int:
+        return len(self.qpos)
+
+
+def _quat_mat(q) -> np.ndarray:
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(q, np.float64))
+    return mat.reshape(3, 3)
+
+
+class Renderer:
+    """A reusable renderer for one scene and frame size; `close()` it (or use `with`): MuJoCo's GL
+    context otherwise reports errors when the interpreter exits.
+
+    `width` x `height` is the whole frame; with camera "both" each view is width // 2 wide."""
+
+    def __init__(self, mj_model: mujoco.MjModel, params: EnvParams, width: int = 640, height: int = 240,
+                 camera: str = "both", fan: bool = True, overlay: bool = True, trail: bool = True):
+        if camera not in CAMERAS:
+            raise ValueError(f"camera={camera!r}: valid cameras are {', '.join(CAMERAS)}")
+        if width < 16 or height < 16:
+            raise ValueError(f"frame {width}x{height}: width and height must be at least 16 pixels")
+        self.params, self.camera, self.fan, self.overlay, self.trail = params, camera, fan, overlay, trail
+        self.width, self.height = int(width), int(height)
+        self.views = ("follow", "overview") if camera == "both" else (camera,)
+        self.view_width = self.width // len(self.views)
+        model = copy.copy(mj_model)   # only visual settings change, on this copy
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, self.view_width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, self.height)
+        model.vis.headlight.ambient[:] = 0.35
+        model.vis.headlight.diffuse[:] = 0.45
+        model.vis.headlight.specular[:] = 0.1
+        model.vis.rgba.fog[:] = (*(TINT_RGB / 255.0), 1.0)
+        model.vis.map.fogstart, model.vis.map.fogend = 0.0, 14.0 / max(model.stat.extent, 1e-6)
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.body_id = model.body("huauv").id
+        self.rotor_sites = [model.site(f"rotor_{n}").id for n in ("front_left", "back_left", "back_right", "front_right")]
+        floor = [i for i in range(model.ngeom) if model.geom(i).name == "floor"]
+        self.floor_top = (float(model.geom_pos[floor[0], 2] + model.geom_size[floor[0], 2]) if floor
+                          else float(params.bounds[0]))
+        self.walls = {i: model.geom_pos[i, :2].copy() for i in range(model.ngeom)
+                      if model.geom(i).name.startswith("wall_")}
+        self.option = mujoco.MjvOption()
+        for g in range(6):
+            self.option.geomgroup[g] = 1
+        self._cams = {v: mujoco.MjvCamera() for v in ("follow", "overview")}
+        for cam in self._cams.values():
+            cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        ov = self._cams["overview"]
+        ov.lookat[:], ov.distance = OVERVIEW["lookat"], OVERVIEW["distance"]
+        ov.azimuth, ov.elevation = OVERVIEW["azimuth"], OVERVIEW["elevation"]
+        self._renderer = make_gl_renderer(model, self.height, self.view_width)
+        self._font = None
+
+    # ------------------------------------------------------------------ lifetime
+    def close(self) -> None:
+        if getattr(self, "_renderer", None) is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # ------------------------------------------------------------------ frames
+    def render_track(self, track: Track, every: int = 1, last: bool = True) -> np.ndarray:
+        """Frames (F, H, W, 3) uint8 of every `every`-th entry of `track` (and of its last when `last`)."""
+        n = len(track)
+        idx = list(range(0, n, max(1, int(every))))
+        if last and idx[-1] != n - 1:
+            idx.append(n - 1)
+        cam_yaw = self._smooth_yaw(track.qpos)
+        frames = np.empty((len(idx), self.height, self.width, 3), np.uint8)
+        for k, t in enumerate(idx):
+            frames[k] = self.track_frame(track, t, cam_yaw[t])
+        return frames
+
+    def track_frame(self, track: Track, t: int = -1, cam_yaw: float | None = None) -> np.ndarray:
+        """The frame (H, W, 3) of entry `t` of `track`, its path so far drawn behind it; the follow
+        camera's heading is the track's smoothed yaw unless `cam_yaw` is given."""
+        t = t % len(track)
+        if cam_yaw is None:
+            cam_yaw = self._smooth_yaw(track.qpos[:t + 1])[-1]
+        return self.frame(track.qpos[t], track.goal[t], None if track.ranges is None else track.ranges[t],
+                          None if track.underwater is None else bool(track.underwater[t]),
+                          lines=self._lines(track, t), trail=track.qpos[:t + 1, :3], cam_yaw=cam_yaw)
+
+    def frame(self, qpos, goal, ranges=None, underwater: bool | None = None, lines: Sequence[str] = (),
+              trail=None, cam_yaw: float | None = None, vehicle: bool = True) -> np.ndarray:
+        """One frame (H, W, 3) uint8 of the vehicle at `qpos` heading for `goal`. `ranges`: the active
+        fan's ranges (drawn when the renderer's `fan` is on); `underwater`: which fan (default: by the
+        vehicle's depth); `trail`: past positions (k, 3); `cam_yaw`: the follow camera's heading in
+        radians (default the vehicle's); `vehicle=False` leaves the vehicle out (tests find its pixels)."""
+        qpos = np.asarray(qpos, np.float64)
+        self.data.qpos[:] = qpos
+        mujoco.mj_kinematics(self.model, self.data)
+        rot = _quat_mat(qpos[3:7])
+        if cam_yaw is None:
+            cam_yaw = float(np.arctan2(rot[1, 0], rot[0, 0]))
+        if underwater is None:
+            underwater = bool(qpos[2] < 0.0)
+        self.option.geomgroup[3] = int(vehicle)
+        views = []
+        for view in self.views:
+            cam = self._cams[view]
+            if view == "follow":
+                self._aim_follow(cam, qpos[:3], cam_yaw)
+            self._renderer.update_scene(self.data, cam, self.option)
+            scene = self._renderer.scene
+            cam_pos = self._camera_position(cam)
+            wet = cam_pos[2] < 0.0
+            scene.flags[mujoco.mjtRndFlag.mjRND_FOG] = wet
+            self._decorate(scene, view, qpos, rot, np.asarray(goal, np.float64), ranges, underwater, trail, vehicle,
+                           cam_pos)
+            img = self._renderer.render().astype(np.float32)
+            if wet:
+                img = (1.0 - TINT) * img + TINT * TINT_RGB
+            views.append(np.clip(img, 0, 255).astype(np.uint8))
+        out = np.concatenate(views, axis=1) if len(views) > 1 else views[0]
+        if out.shape[1] != self.width:   # an odd width with two views: one column of padding
+            out = np.pad(out, ((0, 0), (0, self.width - out.shape[1]), (0, 0)))
+        if self.overlay and lines:
+            out = self._draw_text(out, lines)
+        return out
+
+    # ------------------------------------------------------------------ cameras
+    def _aim_follow(self, cam, position, yaw: float) -> None:
+        cam.lookat[:] = position
+        cam.azimuth, cam.elevation = np.degrees(yaw), FOLLOW["elevation"]
+        back = -self._forward(cam)
+        hit = mujoco.mj_ray(self.model, self.data, position, back, _SOLIDS, 1, self.body_id, np.array([-1], np.int32))
+        cam.distance = FOLLOW["distance"] if hit < 0 else float(np.clip(hit - 0.25, 0.3, FOLLOW["distance"]))
+
+    @staticmethod
+    def _forward(cam) -> np.ndarray:
+        az, el = np.radians(cam.azimuth), np.radians(cam.elevation)
+        return np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+
+    def _camera_position(self, cam) -> np.ndarray:
+        return np.asarray(cam.lookat, np.float64) - cam.distance * self._forward(cam)
+
+    @staticmethod
+    def _smooth_yaw(qpos: np.ndarray, rate: float = 0.25) -> np.ndarray:
+        """The follow camera's heading over a track: the vehicle's yaw, low-pass filtered (a camera
+        that snaps with every yaw correction shakes)."""
+        q = np.asarray(qpos)[:, 3:7]
+        yaw = np.unwrap(np.arctan2(2 * (q[:, 0] * q[:, 3] + q[:, 1] * q[:, 2]), 1 - 2 * (q[:, 2] ** 2 + q[:, 3] ** 2)))
+        out = np.empty_like(yaw)
+        for t, y in enumerate(yaw):
+            out[t] = y if t == 0 else out[t - 1] + rate * (y - out[t - 1])
+        return out
+
+    # ------------------------------------------------------------------ decorations
+    def _add(self, scene, kind, size, pos, rgba, mat=None):
+        if scene.ngeom >= scene.maxgeom:
+            return None
+        g = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(g, kind, np.asarray(size, np.float64), np.asarray(pos, np.float64),
+                            np.eye(3).ravel() if mat is None else np.asarray(mat, np.float64).ravel(),
+                            np.asarray(rgba, np.float32))
+        g.transparent = int(rgba[3] < 1.0)
+        scene.ngeom += 1
+        return g
+
+    def _line(self, scene, a, b, rgba, width: float = 2.0):
+        g = self._add(scene, mujoco.mjtGeom.mjGEOM_LINE, np.zeros(3), np.zeros(3), rgba)
+        if g is not None:
+            mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_LINE, width, np.asarray(a, np.float64),
+                                 np.asarray(b, np.float64))
+
+    def _decorate(self, scene, view, qpos, rot, goal, ranges, underwater, trail, vehicle, cam_pos) -> None:
+        if view == "overview":   # the walls between the camera and the tank are see-through
+            for i in range(scene.ngeom):
+                g = scene.geoms[i]
+                if g.objtype == mujoco.mjtObj.mjOBJ_GEOM and g.objid in self.walls \
+                        and float(np.dot(self.walls[g.objid], cam_pos[:2])) > 0:
+                    g.rgba[3] = 0.12
+                    g.transparent = 1
+        depth = -self.floor_top
+        self._add(scene, mujoco.mjtGeom.mjGEOM_BOX, (TANK, TANK, depth / 2), (0, 0, -depth / 2), WATER_RGBA)
+        corners = [(-TANK, -TANK), (TANK, -TANK), (TANK, TANK), (-TANK, TANK), (-TANK, -TANK)]
+        for (x0, y0), (x1, y1) in zip(corners[:-1], corners[1:]):
+            self._line(scene, (x0, y0, 0.0), (x1, y1, 0.0), SURFACE_RGBA, 3.0)
+        r = self.params.arrival_distance
+        self._add(scene, mujoco.mjtGeom.mjGEOM_SPHERE, (r, r, r), goal, GOAL_RGBA)
+        self._add(scene, mujoco.mjtGeom.mjGEOM_SPHERE, (0.07,) * 3, goal, (0.2, 1.0, 0.3, 1.0))
+        if self.trail and trail is not None and len(trail) > 1:
+            pts = np.asarray(trail)[:: max(1, len(trail) // 150)]
+            pts = np.concatenate([pts, np.asarray(trail)[-1:]])
+            for a, b in zip(pts[:-1], pts[1:]):
+                self._line(scene, a, b, TRAIL_RGBA, 2.0)
+        if vehicle:
+            for k, site in enumerate(self.rotor_sites):
+                front = k in (0, 3)
+                self._add(scene, mujoco.mjtGeom.mjGEOM_CYLINDER, (0.11, 0.012, 0.11), self.data.site_xpos[site],
+                          (0.95, 0.15, 0.1, 1.0) if front else (0.95, 0.95, 0.95, 1.0), rot)
+        if vehicle and view == "overview":   # the vehicle is a few pixels in the overview: a halo shows it
+            self._add(scene, mujoco.mjtGeom.mjGEOM_SPHERE, (0.4,) * 3, qpos[:3], (1.0, 0.25, 0.2, 0.55))
+        if self.fan and ranges is not None:
+            ranges = np.asarray(ranges, np.float64)
+            dirs = np.asarray(sensors.beam_directions(self.params, rot, underwater))
+            limit = self.params.sonar_max_range if underwater else self.params.lidar_max_range
+            rgba = SONAR_RGBA if underwater else LIDAR_RGBA
+            for d, rng in zip(dirs, ranges):
+                end = qpos[:3] + rng * d
+                self._line(scene, qpos[:3], end, rgba, 1.5)
+                if rng < limit - 1e-3:
+                    self._add(scene, mujoco.mjtGeom.mjGEOM_SPHERE, (0.06,) * 3, end, (*rgba[:3], 1.0))
+
+    # ------------------------------------------------------------------ text
+    def _draw_text(self, frame: np.ndarray, lines: Sequence[str]) -> np.ndarray:
+        from PIL import Image, ImageDraw, ImageFont
+        if self._font is None:
+            size = max(9, self.height // 20)
+            try:
+                self._font = ImageFont.load_default(size=size)
+            except TypeError:   # Pillow < 10.1: the fixed bitmap font
+                self._font = ImageFont.load_default()
+        img = Image.fromarray(frame)
+        draw = ImageDraw.Draw(img, "RGBA")
+        pad = 3
+        boxes = [draw.textbbox((0, 0), line, font=self._font) for line in lines]
+        step = max(b[3] - b[1] for b in boxes) + 2
+        width = max(b[2] - b[0] for b in boxes)
+        draw.rectangle((0, 0, width + 2 * pad, step * len(lines) + 2 * pad), fill=(0, 0, 0, 140))
+        for k, line in enumerate(lines):
+            draw.text((pad, pad + k * step), line, fill=(255, 255, 255, 255), font=self._font)
+        return np.asarray(img)
+
+    @staticmethod
+    def _lines(track: Track, t: int) -> list[str]:
+        lines = [track.title] if track.title else []
+        parts = []
+        if track.step is not None:
+            parts.append(f"step {int(track.step[t])}")
+        wet = bool(track.underwater[t]) if track.underwater is not None else bool(track.qpos[t, 2] < 0)
+        parts.append("water (sonar)" if wet else "air (LIDAR)")
+        if track.distance is not None:
+            parts.append(f"goal {float(track.distance[t]):.2f} m")
+        lines.append("  ".join(parts))
+        if track.status is not None and track.status[t]:
+            lines.append(str(track.status[t]))
+        return lines
+
+
+# ------------------------------------------------------------------ from env states
+def _status_of(info: dict[str, np.ndarray], t: int) -> str:
+    for key, text in (("arrived", "arrived"), ("collision", "collision"), ("out_of_bounds", "out of bounds"),
+                      ("truncated", "time-out")):
+        if key in info and bool(info[key][t]):
+            return text
+    return ""
+
+
+def track_from_infos(qpos: Sequence, infos: Sequence[dict]) -> Track:
+    """A Track of poses (T, 7) and the env's info dicts (numpy) of the same steps (the Gymnasium
+    adapter keeps these)."""
+    info = {k: np.stack([np.asarray(i[k]) for i in infos]) for k in infos[0]}
+    return Track(qpos=np.asarray(qpos, np.float64).reshape(-1, 7), goal=info["goal"], ranges=info["ranges"],
+                 underwater=info["underwater"], step=info["step"], distance=info["distance"],
+                 status=[_status_of(info, t) for t in range(len(infos))])
+
+
+def track_from_states(states: Any) -> Track:
+    """A Track of EnvStates: a sequence of single states or one state stacked over time."""
+    import jax
+    if isinstance(states, (list, tuple)):
+        if not states:
+            raise ValueError("render: no states given")
+        states = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *states)
+    sim, info = jax.device_get(states.sim), jax.device_get(states.info)
+    qpos = np.asarray(sim.data.qpos)
+    if qpos.ndim == 1:
+        qpos, sim, info = qpos[None], jax.tree.map(lambda x: np.asarray(x)[None], sim), \
+            jax.tree.map(lambda x: np.asarray(x)[None], info)
+    if qpos.ndim != 2 or qpos.shape[1] != 7:
+        raise ValueError(f"render: states of qpos shape {qpos.shape}: expected one env's states over time "
+                         f"(T, 7); for a batch of envs, render one env at a time")
+    return Track(qpos=qpos, goal=np.asarray(sim.goal), ranges=np.asarray(info["ranges"]),
+                 underwater=np.asarray(info["underwater"]), step=np.asarray(info["step"]),
+                 distance=np.asarray(info["distance"]), status=[_status_of(info, t) for t in range(len(qpos))])
+
+
+def render_states(env, states: Any, camera: str = "both", width: int = 640, height: int = 240,
+                  fan: bool = True, overlay: bool = True) -> np.ndarray:
+    """Frames (T, H, W, 3) uint8 of `env`'s states (see `HUAUVEnv.render`)."""
+    track = track_from_states(states)
+    with Renderer(env.mj_model, env.params, width, height, camera, fan, overlay) as r:
+        return r.render_track(track, last=False)
