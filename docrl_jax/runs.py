@@ -109,6 +109,16 @@ def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") 
     params = jax.tree.map(lambda x: x[seed_index], stacked)
     source = (describe_best(meta["best"], seed_index) + f", kept in checkpoint {step}" if which == "best"
               else f"final policy of seed index {seed_index}: checkpoint {step}")
+    return actor_policy(config, params, source, agent)
+
+
+def actor_policy(config: Config, params, source: str = "", agent=None) -> Policy:
+    """The deterministic `Policy` of one seed's actor `params` under `config` (what `load_policy`
+    returns; the trainer's videos build it from the actor being trained). Its functions are new on
+    every call: keep one and `dataclasses.replace` its params to reuse a compiled rollout."""
+    if agent is None:
+        from docrl_jax.algorithms import make_agent
+        agent = make_agent(config)
     recurrent = config.agent.recurrent
 
     def init_carry():

@@ -43,17 +43,24 @@ def make_eval_env(scenario: int, max_steps: int = 500, **overrides):
 _ROLLOUTS: dict = {}
 
 
-def _cache_key(env, policy, max_steps: int) -> tuple:
-    return id(env), id(policy.act), id(policy.init_carry), int(max_steps)
+# What a rendering rollout records besides (`render=True`), per step and for the start: the pose and
+# what the env knew (docrl_jax.envs.rendering draws them).
+RENDER_RECORDS = ("qpos", "goal", "ranges", "underwater", "distance")
 
 
-def make_rollout(env, policy, max_steps: int):
+def _cache_key(env, policy, max_steps: int, render: bool = False) -> tuple:
+    return id(env), id(policy.act), id(policy.init_carry), int(max_steps), bool(render)
+
+
+def make_rollout(env, policy, max_steps: int, render: bool = False):
     """jit(vmap(scan)) over trials: (params, keys (N,2), positions (N,3), yaws (N,), goal (3,)) -> records.
 
-    Cached per (env, policy.act, max_steps), so calling again with other params or trials reuses the
-    compiled function (a new N retraces once).
+    Cached per (env, policy.act, max_steps, render), so calling again with other params or trials
+    reuses the compiled function (a new N retraces once). `render=True` also records `RENDER_RECORDS`
+    (N, T+1, ...) for the renderer (docrl_jax.evaluate.video): the same trials, the same computation,
+    a separate program so that the evaluator's own carries nothing more.
     """
-    cache_key = _cache_key(env, policy, max_steps)
+    cache_key = _cache_key(env, policy, max_steps, render)
     if cache_key in _ROLLOUTS:
         return _ROLLOUTS[cache_key][0]
     import jax
@@ -74,32 +81,44 @@ def make_rollout(env, policy, max_steps: int):
             rec = {"position": next_state.info["position"], "underwater_before": state.info["underwater"],
                    "taken": ~done, "action": jnp.where(done, 0.0, jnp.asarray(action, jnp.float32)),
                    "reward": jnp.where(done, 0.0, new_state.reward)}
+            if render:
+                rec.update(_render_records(next_state))
             return (next_state, next_pcarry, done | new_state.done), rec
 
         keys = jax.random.split(k_policy, max_steps)
         (final, _, _), rec = jax.lax.scan(body, (state0, carry0, jnp.zeros((), bool)), keys)
         info = final.info
-        return {
+        out = {
             "positions": jnp.concatenate([state0.info["position"][None], rec["position"]], 0),
             "underwater_before": rec["underwater_before"], "taken": rec["taken"], "actions": rec["action"],
             "rewards": rec["reward"],
             "arrived": info["arrived"], "collision": info["collision"], "out_of_bounds": info["out_of_bounds"],
             "terminated": info["terminated"], "final_distance": info["distance"],
         }
+        if render:
+            first = _render_records(state0)
+            out.update({k: jnp.concatenate([first[k][None], rec[k]], 0) for k in RENDER_RECORDS})
+        return out
 
     fn = jax.jit(jax.vmap(one_trial, in_axes=(None, 0, 0, 0, None)))
     _ROLLOUTS[cache_key] = (fn, env, policy)  # keep env/policy alive so the ids stay unique
     return fn
 
 
+def _render_records(state) -> dict:
+    return {"qpos": state.sim.data.qpos, "goal": state.sim.goal, "ranges": state.info["ranges"],
+            "underwater": state.info["underwater"], "distance": state.info["distance"]}
+
+
 def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 500,
-               yaw: float = 0.0, spec: TrialSpec = TrialSpec()) -> dict[str, np.ndarray]:
+               yaw: float = 0.0, spec: TrialSpec = TrialSpec(), render: bool = False) -> dict[str, np.ndarray]:
     """Runs `num_trials` trials of `policy` from (jittered) `start` to `goal` as one vmapped rollout.
 
     Returns numpy arrays, leading axis = trial: positions (N, T+1, 3) (frozen after the end),
     steps (N,), outcome (N,) index into OUTCOMES, t_air/t_water/time (N,) simulated seconds,
     path_length (N,), success/collision/out_of_bounds/timeout/diverged (N,) bool, final_distance,
-    episode_return, start_positions (N, 3), start_yaws (N,), and the raw per-step records.
+    episode_return, start_positions (N, 3), start_yaws (N,), and the raw per-step records; with
+    `render`, also `RENDER_RECORDS` (N, T+1, ...) (see `make_rollout`).
     """
     import jax
     if not getattr(env.params, "terminate_on_arrival", False):
@@ -111,7 +130,7 @@ def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 
     k_start, k_trials = jax.random.split(key)
     positions, yaws = trial_starts(k_start, start, num_trials, yaw, spec)
     keys = jax.random.split(k_trials, num_trials)
-    fn = make_rollout(env, policy, max_steps)
+    fn = make_rollout(env, policy, max_steps, render)
     out = jax.device_get(fn(policy.params, keys, positions, yaws, jax.numpy.asarray(goal, jax.numpy.float32)))
     out = {k: np.asarray(v) for k, v in out.items()}
     return trial_metrics(out, env.control_dt, np.asarray(positions), np.asarray(yaws))
@@ -142,6 +161,14 @@ def trial_metrics(out: dict[str, np.ndarray], dt: float, start_positions, start_
     return res
 
 
+def trial_key(seed: int, scenario: int, direction: str):
+    """The PRNG key of the trials of one (scenario, direction): a function of (seed, scenario,
+    direction) only, so every method and seed index meets the same wind, noise and start jitter, and
+    the renderer (docrl_jax.evaluate.video) draws the very trials the evaluator ran."""
+    import jax
+    return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), scenario), DIRECTIONS.index(direction))
+
+
 def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = SCENARIOS,
                     directions: Sequence[str] = DIRECTIONS, num_trials: int = 100, max_steps: int = 500,
                     seed: int = 0, env_overrides: dict | None = None, seed_index: int | None = None,
@@ -153,15 +180,13 @@ def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = S
     `run_trials` arrays. The trial seeds depend only on (seed, scenario, direction), so every method
     and seed index meets the same wind, noise and start jitter. `on_result(row, trials, env, start,
     goal)` is called after each (scenario, direction)."""
-    import jax
     import docrl_jax.envs as envs
-    base = jax.random.PRNGKey(seed)
     results = []
     for scenario in scenarios:
         env = make_eval_env(scenario, max_steps, **(env_overrides or {}))
         for direction in directions:
             start, goal = envs.eval_pair(scenario, direction)
-            key = jax.random.fold_in(jax.random.fold_in(base, scenario), DIRECTIONS.index(direction))
+            key = trial_key(seed, scenario, direction)
             fresh = _cache_key(env, policy, max_steps) not in _ROLLOUTS
             t0 = time.time()
             trials = run_trials(env, policy, start, goal, key, num_trials, max_steps, NOMINAL_YAW[direction])

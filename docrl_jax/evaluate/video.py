@@ -1,0 +1,370 @@
+"""`python -m docrl_jax.render`: the evaluator's trials drawn by MuJoCo's renderer, as an MP4 or a GIF.
+
+    python -m docrl_jax.render --run runs/d --scenario 2 --direction water_to_air --out wa.mp4
+    python -m docrl_jax.render --policy bba --scenario 3 --direction air_to_water --trials 3 --out bba.gif
+    python -m docrl_jax.render --run runs/d --direction water_to_air --trials 1 --of 100 --out first.gif
+    python -m docrl_jax.render --run runs/d --direction random --trials 4 --camera follow --out random.mp4
+
+The trials are the evaluator's (docrl_jax.evaluate.rollout and protocol: the same env settings, seeds
+and rollout, which here also records the pose and the ranges of every step): `--trials K` draws the K
+trials that `python -m docrl_jax.evaluate --trials K` runs for that scenario and direction, and
+`--of N` the first K of the N trials of `evaluate --trials N`. `random`: starts and goals drawn from
+the env's reset distribution, trial i from a key of (--seed, scenario, i). Trials are drawn one after
+another, each ending on its outcome for a second. The frames are `envs.rendering.Renderer`'s (cameras,
+water, goal, range fan, overlay). MP4 needs imageio and imageio-ffmpeg (`pip install -e '.[render]'`);
+a GIF is written by Pillow, which the package always has. Bad input is one line and exit status 2,
+before anything is compiled.
+
+As a library: `trials_to_render` (the rollout), `tracks` (what is drawn of each trial), `render_frames`
+and `write_video` / `encode_gif`; the trainer's TensorBoard videos (docrl_jax.train.tb_video) use them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import math
+import os
+import sys
+import time
+import warnings
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
+from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
+from docrl_jax.evaluate.tables import SHORT
+
+SUFFIXES = (".mp4", ".gif")
+RENDER_DIRECTIONS = (*DIRECTIONS, "random")
+_ALIASES = {"a-w": "air_to_water", "w-a": "water_to_air", "aw": "air_to_water", "wa": "water_to_air"}
+INSTALL = "pip install -e '.[render]'"
+HOLD_S = 1.0        # each trial's last frame (its outcome) stays this long
+RANDOM_SALT = 7     # random trials' keys: fold_in(fold_in(PRNGKey(seed), scenario), RANDOM_SALT + i)
+
+
+class UsageError(ValueError):
+    """A bad command line; the message names the valid choices."""
+
+
+def imageio_for(suffix: str):
+    """imageio's v3 API for writing `suffix` (MP4 also needs imageio-ffmpeg, which brings its own ffmpeg);
+    ImportError naming the extra when they are missing."""
+    try:
+        import imageio.v3 as iio
+        if suffix == ".mp4":
+            import imageio_ffmpeg  # noqa: F401  (imageio's ffmpeg plugin needs it and its ffmpeg binary)
+    except ImportError as e:
+        raise ImportError(f"writing {suffix} needs imageio and imageio-ffmpeg ({e.name or 'imageio'} is missing): "
+                          f"{INSTALL}") from None
+    return iio
+
+
+# ------------------------------------------------------------------ policies
+_SHARED: dict = {}   # settings -> the first policy loaded with them
+
+
+def _shared(policy, settings) -> Any:
+    """Policies of the same settings get the first one's functions, so a process that draws several
+    (or draws again) compiles their rollout once (it is cached per policy function)."""
+    first = _SHARED.setdefault(settings, policy)
+    return policy if first is policy else replace(first, params=policy.params, source=policy.source,
+                                                  name=policy.name)
+
+
+def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "final",
+               bba_depth_phase: str = "after"):
+    """(policy, method label): one seed of a run directory, or the BBA baseline (run None)."""
+    if run is None:
+        from docrl_jax.baselines.bba import make_bba
+        label = "BBA" if bba_depth_phase == "after" else f"BBA ({bba_depth_phase})"
+        return _shared(make_bba(env.params, depth_phase=bba_depth_phase), ("bba", id(env), bba_depth_phase)), label
+    from docrl_jax import runs
+    policy = runs.load_policy(run, seed_index=seed_index, which=which)
+    return _shared(policy, ("run", runs.read_config(run).agent)), Path(run).resolve().name
+
+
+# ------------------------------------------------------------------ trials
+def trials_to_render(env, policy, scenario: int, direction: str, num_trials: int = 1, of: int | None = None,
+                     max_steps: int = 500, seed: int = 0) -> dict[str, np.ndarray]:
+    """The first `num_trials` of the evaluator's `of` (default `num_trials`) trials of one (scenario,
+    direction), with the records the renderer needs (`rollout.run_trials(..., render=True)`); for
+    `random`, trials from the env's reset distribution. Arrays with a leading trial axis."""
+    import jax
+    import docrl_jax.envs as envs
+    from docrl_jax.evaluate import rollout
+    if direction != "random":
+        start, goal = envs.eval_pair(scenario, direction)
+        trials = rollout.run_trials(env, policy, start, goal, rollout.trial_key(seed, scenario, direction),
+                                    of or num_trials, max_steps, NOMINAL_YAW[direction], render=True)
+        return {k: (v[:num_trials] if np.ndim(v) else v) for k, v in trials.items()}
+    base = jax.random.fold_in(jax.random.PRNGKey(seed), scenario)
+    keys = jax.numpy.stack([jax.random.fold_in(base, RANDOM_SALT + i) for i in range(num_trials)])
+    k_reset, k_trial = jax.vmap(jax.random.split, out_axes=1)(keys)
+    starts = jax.jit(jax.vmap(env.reset))(k_reset)
+    positions, yaws, goals = (np.asarray(starts.info[k]) for k in ("position", "yaw", "goal"))
+    fn = rollout.make_rollout(env, policy, max_steps, render=True)
+    outs = [jax.device_get(fn(policy.params, k_trial[i:i + 1], positions[i:i + 1], yaws[i:i + 1], goals[i]))
+            for i in range(num_trials)]
+    out = {k: np.concatenate([np.asarray(o[k]) for o in outs]) for k in outs[0]}
+    return rollout.trial_metrics(out, env.control_dt, positions, yaws)
+
+
+def outcome_line(trials: dict[str, np.ndarray], i: int, dt: float) -> str:
+    """'success in 52 steps (10.4 s; air 4.2 s, water 6.2 s; path 6.1 m)' for trial i."""
+    steps = int(trials["steps"][i])
+    what = OUTCOMES[int(trials["outcome"][i])].replace("_", " ")
+    line = f"{what} after {steps} steps ({steps * dt:.1f} s"
+    if trials["success"][i]:
+        line += f"; air {trials['t_air'][i]:.1f} s, water {trials['t_water'][i]:.1f} s; path {trials['path_length'][i]:.1f} m"
+    return line + ")"
+
+
+def tracks(trials: dict[str, np.ndarray], dt: float, title: str = "") -> list:
+    """One `envs.rendering.Track` per trial, from its start to its last step; the last entry names
+    the outcome. `title` may hold {trial} and {trials}."""
+    from docrl_jax.envs.rendering import Track
+    out = []
+    n = len(trials["steps"])
+    for i in range(n):
+        end = int(trials["steps"][i]) + 1
+        status = [""] * (end - 1) + [outcome_line(trials, i, dt)]
+        out.append(Track(qpos=trials["qpos"][i, :end], goal=trials["goal"][i, :end], ranges=trials["ranges"][i, :end],
+                         underwater=trials["underwater"][i, :end], step=np.arange(end),
+                         distance=trials["distance"][i, :end], status=status,
+                         title=title.format(trial=i + 1, trials=n)))
+    return out
+
+
+def render_frames(renderer, track_list: Sequence, every: int = 1, fps: float = 10.0,
+                  hold_s: float = HOLD_S) -> tuple[np.ndarray, list[float]]:
+    """Frames (F, H, W, 3) of the tracks one after another, and each frame's duration in seconds:
+    1 / fps, and `hold_s` more on each track's last frame (its outcome)."""
+    frames, durations = [], []
+    for track in track_list:
+        f = renderer.render_track(track, every=every)
+        frames.append(f)
+        durations += [1.0 / fps] * (len(f) - 1) + [1.0 / fps + hold_s]
+    return np.concatenate(frames), durations
+
+
+def encode_gif(frames: np.ndarray, durations: Sequence[float]) -> bytes:
+    """An animated GIF (looping) of `frames`, by Pillow: one adaptive palette per frame."""
+    from PIL import Image
+    images = [Image.fromarray(f).quantize(colors=255, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+              for f in frames]
+    ms = [max(20, int(round(d * 1000 / 10)) * 10) for d in durations]   # GIF delays are in 10 ms units
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=ms, loop=0,
+                   disposal=1)
+    return buf.getvalue()
+
+
+def write_video(path: str | os.PathLike, frames: np.ndarray, durations: Sequence[float], fps: float = 10.0) -> int:
+    """Writes `frames` to `path` (.mp4 through imageio-ffmpeg, H.264; .gif by Pillow); returns the
+    number of frames in the file. An MP4 has a constant rate, so a longer duration repeats a frame."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".gif":
+        path.write_bytes(encode_gif(frames, durations))
+        return len(frames)
+    if suffix != ".mp4":
+        raise ValueError(f"{path}: unknown video suffix; valid suffixes are {', '.join(SUFFIXES)}")
+    imageio_for(suffix)
+    import imageio.v2 as imageio
+    written = 0
+    # imageio-ffmpeg starts ffmpeg with subprocess (fork + exec at once), which JAX's fork warning
+    # is not about: it would be noise on every MP4.
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
+        written = _write_mp4(imageio, path, frames, durations, fps)
+    return written
+
+
+def _write_mp4(imageio, path: Path, frames: np.ndarray, durations: Sequence[float], fps: float) -> int:
+    written = 0
+    with imageio.get_writer(path, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=7,
+                            pixelformat="yuv420p", macro_block_size=1, ffmpeg_log_level="error") as writer:
+        for frame, d in zip(frames, durations):
+            for _ in range(max(1, int(round(d * fps)))):
+                writer.append_data(frame)
+                written += 1
+    return written
+
+
+# ------------------------------------------------------------------ the command
+def parse_direction(text: str) -> str:
+    value = _ALIASES.get(text.strip().lower(), text.strip().lower())
+    if value not in RENDER_DIRECTIONS:
+        raise UsageError(f"--direction {text!r}: valid directions are air_to_water (A-W), water_to_air (W-A), random")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from docrl_jax.envs.rendering import CAMERAS
+    from docrl_jax.policy import CHECKPOINT_POLICIES
+    p = argparse.ArgumentParser(prog="python -m docrl_jax.render", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory: its final policy (or --which best)")
+    src.add_argument("--policy", metavar="NAME", help="a built-in policy: bba")
+    p.add_argument("--seed-index", type=int, default=0, help="which seed of --run (default 0)")
+    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES, help="with --run: final (default) or best")
+    p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
+    p.add_argument("--scenario", type=int, default=2, help="1, 2 or 3 (default 2, the training scenario)")
+    p.add_argument("--direction", default="water_to_air",
+                   help="air_to_water (A-W), water_to_air (W-A, default) or random (starts and goals of the env's "
+                        "reset distribution)")
+    p.add_argument("--trials", type=int, default=1, help="trials drawn one after another (default 1)")
+    p.add_argument("--of", type=int, default=None, metavar="N",
+                   help="draw the first --trials of the evaluator's N trials (evaluate --trials N); default: of "
+                        "--trials (paper directions only)")
+    p.add_argument("--max-steps", type=int, default=500, help="step limit of a trial (default 500, the paper's)")
+    p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0, the evaluator's)")
+    p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
+                   help="env parameter override (repeatable), as for python -m docrl_jax.evaluate")
+    p.add_argument("--camera", default="both", choices=CAMERAS,
+                   help="follow (behind the vehicle), overview (the tank) or both side by side (default)")
+    p.add_argument("--no-fan", action="store_true", help="leave the active range fan out")
+    p.add_argument("--width", type=int, default=640, help="frame width in pixels, both views together (default 640)")
+    p.add_argument("--height", type=int, default=240, help="frame height in pixels (default 240)")
+    p.add_argument("--fps", type=float, default=10.0,
+                   help="frames per second of the video (default 10; a control step is 0.2 s, so 5 is real time "
+                        "with --every 1)")
+    p.add_argument("--every", type=int, default=1, metavar="K", help="draw every K-th control step (default 1)")
+    p.add_argument("--out", required=True, metavar="FILE", help="the video: FILE.mp4 (H.264) or FILE.gif")
+    return p
+
+
+def validate_args(args: argparse.Namespace) -> dict[str, Any]:
+    """Checks the command line before anything is compiled; raises UsageError or RunDirError."""
+    from docrl_jax.baselines.bba import DEPTH_PHASES
+    from docrl_jax.evaluate.cli import check_run_dir, parse_env_overrides
+    if args.run is None and args.policy is None:
+        raise UsageError("nothing to draw: give --run RUN_DIR or --policy bba")
+    if args.policy is not None and args.policy.lower() != "bba":
+        raise UsageError(f"--policy {args.policy!r}: unknown policy; valid choices: bba (or --run RUN_DIR)")
+    if args.bba_depth_phase not in DEPTH_PHASES:
+        raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
+    if args.scenario not in SCENARIOS:
+        raise UsageError(f"--scenario {args.scenario}: valid scenarios are {', '.join(map(str, SCENARIOS))}")
+    direction = parse_direction(args.direction)
+    for flag, value in (("--trials", args.trials), ("--max-steps", args.max_steps), ("--every", args.every)):
+        if value <= 0:
+            raise UsageError(f"{flag} {value}: must be a positive integer")
+    if args.of is not None:
+        if direction == "random":
+            raise UsageError("--of: random trials do not depend on their number; leave --of out")
+        if args.of < args.trials:
+            raise UsageError(f"--of {args.of}: must be at least --trials {args.trials}")
+    if not args.fps > 0 or not math.isfinite(args.fps):
+        raise UsageError(f"--fps {args.fps}: must be a positive number")
+    for flag, value in (("--width", args.width), ("--height", args.height)):
+        if value < 32 or value % 2:
+            raise UsageError(f"{flag} {value}: must be an even number of pixels >= 32 (H.264 needs even sides)")
+    if args.run is not None:
+        check_run_dir(args.run)
+        from docrl_jax import runs
+        num_seeds = runs.read_config(args.run).train.num_seeds
+        if not 0 <= args.seed_index < num_seeds:
+            raise UsageError(f"--seed-index {args.seed_index}: the run has {num_seeds} seed(s) "
+                             f"(valid 0..{num_seeds - 1})")
+    out = Path(args.out)
+    suffix = out.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise UsageError(f"--out {args.out}: unknown video suffix {suffix or '(none)'!r}; valid suffixes are "
+                         f"{', '.join(SUFFIXES)}")
+    if suffix == ".mp4":   # a GIF is Pillow's
+        try:
+            imageio_for(suffix)
+        except ImportError as e:
+            raise UsageError(f"--out {args.out}: {e}, or write a .gif") from None
+    try:
+        env = parse_env_overrides(args.env, [args.scenario])
+    except ValueError as e:   # the evaluator's UsageError
+        raise UsageError(str(e)) from None
+    check_writable(out)
+    return {"direction": direction, "env": env, "out": out}
+
+
+def check_writable(path: Path) -> None:
+    """UsageError when `path` cannot be written (no folder, no permission, a directory)."""
+    existed = path.exists()
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as e:
+        raise UsageError(f"--out: {os_error_line(e)}") from None
+    if not existed:
+        path.unlink()
+
+
+def import_mujoco() -> None:
+    """Imports mujoco (MUJOCO_GL is read then); RenderError when MUJOCO_GL makes the import fail (a
+    value MuJoCo does not know, or a backend whose library is missing)."""
+    try:
+        import mujoco  # noqa: F401
+    except Exception as e:  # RuntimeError for an unknown value, AttributeError from PyOpenGL without libEGL
+        raise RenderError.no_gl(f"import mujoco: {short_reason(e, 120)}") from None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        import_mujoco()
+    except RenderError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        cfg = validate_args(args)
+    except (UsageError, RunDirError) as e:
+        parser.error(str(e))  # exits with status 2 and the usage line
+    try:
+        return _render(args, cfg)
+    except RenderError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except RunDirError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(f"error: {os_error_line(e)}", file=sys.stderr)
+        return 2
+
+
+def _render(args, cfg: dict) -> int:
+    from docrl_jax.envs.rendering import Renderer
+    from docrl_jax.evaluate import rollout
+    t0 = time.time()
+    env = rollout.make_eval_env(args.scenario, args.max_steps, **cfg["env"])
+    # The GL context first: a machine that cannot render says so before the rollout compiles.
+    with Renderer(env.mj_model, env.params, args.width, args.height, args.camera, fan=not args.no_fan) as renderer:
+        policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase)
+        if getattr(policy, "source", ""):
+            print(f"{label}: {policy.source}", flush=True)
+        direction = cfg["direction"]
+        trials = trials_to_render(env, policy, args.scenario, direction, args.trials, args.of, args.max_steps,
+                                  args.seed)
+        name = SHORT.get(direction, direction)
+        of = f" of {args.of}" if args.of else ""
+        for i in range(args.trials):
+            print(f"scenario {args.scenario} {name} {label} trial {i + 1}/{args.trials}{of}: "
+                  f"{outcome_line(trials, i, env.control_dt)}", flush=True)
+        t1 = time.time()
+        title = f"{label}  scenario {args.scenario} {name}  trial {{trial}}/{{trials}}{of}"
+        frames, durations = render_frames(renderer, tracks(trials, env.control_dt, title), args.every, args.fps)
+        t2 = time.time()
+    written = write_video(cfg["out"], frames, durations, args.fps)
+    views = 2 if args.camera == "both" else 1
+    print(f"wrote {cfg['out']}: {written} frames of {args.width}x{args.height} at {args.fps:g} fps, "
+          f"{cfg['out'].stat().st_size / 1e6:.2f} MB (rollout {t1 - t0:.1f} s, {len(frames)} frames drawn in "
+          f"{t2 - t1:.1f} s: {len(frames) * views / max(t2 - t1, 1e-9):.1f} views/s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
