@@ -182,6 +182,13 @@ class TrainConfig:
         "the last checkpoint, so a crash loses at most that much, whatever "
         "the device's speed.")
     keep_checkpoints: int = documented(3, "Most recent checkpoints kept on disk.")
+    video_every: int = documented(0,
+        "0 = off. N: a GIF of one water-to-air trial of the run's policy (seed index 0) in the run's "
+        "TensorBoard (image video/water_to_air) at every Nth evaluation of a launch, the first "
+        "included, and at the last: trial 1 of `python -m docrl_jax.render --direction water_to_air` "
+        "in env.scenario (the evaluator's env and seeds). Drawn by MuJoCo's renderer on process 0 "
+        "between chunks (seconds on a CPU; docrl_jax/train/tb_video.py); a machine that cannot "
+        "render warns once and trains on. Runs only: sweeps draw none.")
 
 
 @dataclass(frozen=True)
@@ -422,6 +429,7 @@ def validate(c: Config) -> Config:
                            ("train.eval_every", t.eval_every, 1), ("train.eval_episodes", t.eval_episodes, 1),
                            ("train.checkpoint_every", t.checkpoint_every, 1), ("train.start_steps", t.start_steps, 0),
                            ("train.keep_checkpoints", t.keep_checkpoints, 1), ("agent.policy_freq", a.policy_freq, 0),
+                           ("train.video_every", t.video_every, 0),
                            ("replay.burn_in", r.burn_in, 0), ("agent.n_step", a.n_step, 1)]:
         if value < lo:
             _bad(key, value, f"must be >= {lo}")

@@ -34,7 +34,7 @@ from rich.text import Text
 from docrl_jax import checkpoint, memory, runs, sharding
 from docrl_jax.config import Config, load_config, to_yaml
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
-from docrl_jax.train import best_policy, metrics
+from docrl_jax.train import best_policy, metrics, tb_video
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, Cadence, Hooks,
                                   Interrupt, make_console, run_chunks)
 from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
@@ -253,6 +253,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     else:
         writer = _NoWriter()
     last_eval = metrics.eval_success(last_rows)
+    videos = tb_video.TrialVideo(config, writer, console, primary)   # train.video_every
 
     def wall() -> float:
         return wall_before + time.time() - launch_time
@@ -273,6 +274,8 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
             writer.add_scalar(f"eval/{k}", float(np.mean(v)), steps)
         pending = metrics.empty_pending(len(seeds))
         last_eval = metrics.eval_success(rows)
+        videos.after_evaluation(lambda: placement.get(state.agent.actor_average), steps,
+                                final=steps >= trainer.total_env_steps)
 
     def save(state, steps: int, chunks: int):
         meta = {"env_steps": steps, "chunk": chunks, "wall_time_s": wall(), "pending": pending, "name": config.name}
@@ -308,7 +311,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     hooks = Hooks(check=check, evaluate=evaluate, show=show, save=save)  # save is collective: every process
     evals = Cadence(t_cfg.eval_every, t_cfg.eval_every_minutes)
     saves = Cadence(t_cfg.checkpoint_every, t_cfg.checkpoint_every_minutes)
-    with Interrupt(console) as interrupt, display.live():
+    with Interrupt(console) as interrupt, display.live(), contextlib.closing(videos):
         newest = mngr.latest_step()
         interrupt.newest = "none yet" if newest is None else f"env step {newest:,}"
         if not resume:

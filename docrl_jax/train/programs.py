@@ -87,7 +87,7 @@ def program_config(config: Config, traced: bool = False) -> Config:
     one compilation: the run length is a runner-state field and the seed keys are arguments."""
     train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
                                 keep_checkpoints=1, devices=0, eval_trained_actor=False,
-                                eval_every_minutes=1.0, checkpoint_every_minutes=1.0)
+                                eval_every_minutes=1.0, checkpoint_every_minutes=1.0, video_every=0)
     agent = hparams_neutral(config.agent) if traced else config.agent
     return dataclasses.replace(config, name="run", train=train, agent=agent)
 
