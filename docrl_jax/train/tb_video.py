@@ -75,7 +75,7 @@ class TrialVideo:
         scenario = self.config.env.scenario
         if self._env is None:
             self._env = rollout.make_eval_env(scenario, MAX_STEPS)
-            self._renderer = Renderer(self._env.mj_model, self._env.params, WIDTH, HEIGHT)
+            self._renderer = Renderer(self._env.mj_model, self._env.params, WIDTH, HEIGHT, antialias=False)
             self._policy = runs.actor_policy(self.config, params)   # its functions: one compiled rollout
         policy = replace(self._policy, params=params)
         trials = video.trials_to_render(self._env, policy, scenario, DIRECTION, 1, None, MAX_STEPS)
