@@ -2,7 +2,7 @@
 
     <run_dir>/config.yaml      the resolved config (every key, overrides applied)
     <run_dir>/metrics.csv      one row per seed per evaluation (docrl_jax.train.metrics.METRIC_COLUMNS)
-    <run_dir>/tb/              TensorBoard event files, training metrics every chunk
+    <run_dir>/tb/              TensorBoard event files, training metrics every chunk (and GIFs: train.video_every)
     <run_dir>/startup.json     compile time and launch-to-first-chunk seconds of the latest launch
     <run_dir>/checkpoints/<env_steps>/{state,policy,best,meta}   Orbax (docrl_jax.checkpoint)
 

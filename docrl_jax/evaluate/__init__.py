@@ -8,6 +8,7 @@
     paper_results  the paper's published Table I
     plotting       trajectory figures and Figure 3 (`python -m docrl_jax.plotting`)
     curves         learning curves from metrics.csv
+    video          the trials drawn by MuJoCo's renderer to MP4 or GIF (`python -m docrl_jax.render`)
 
 Importing the package loads protocol, rollout and tables only (no Matplotlib, no checkpoint code).
 """
