@@ -57,8 +57,9 @@ def make_rollout(env, policy, max_steps: int, render: bool = False):
 
     Cached per (env, policy.act, max_steps, render), so calling again with other params or trials
     reuses the compiled function (a new N retraces once). `render=True` also records `RENDER_RECORDS`
-    (N, T+1, ...) for the renderer (docrl_jax.evaluate.video): the same trials, the same computation,
-    a separate program so that the evaluator's own carries nothing more.
+    (N, T+1, ...) for the renderer (docrl_jax.evaluate.video) and takes one goal per trial (N, 3)
+    (random starts and goals): the same trials, the same computation, a separate program so that the
+    evaluator's own carries nothing more.
     """
     cache_key = _cache_key(env, policy, max_steps, render)
     if cache_key in _ROLLOUTS:
@@ -100,7 +101,7 @@ def make_rollout(env, policy, max_steps: int, render: bool = False):
             out.update({k: jnp.concatenate([first[k][None], rec[k]], 0) for k in RENDER_RECORDS})
         return out
 
-    fn = jax.jit(jax.vmap(one_trial, in_axes=(None, 0, 0, 0, None)))
+    fn = jax.jit(jax.vmap(one_trial, in_axes=(None, 0, 0, 0, 0 if render else None)))
     _ROLLOUTS[cache_key] = (fn, env, policy)  # keep env/policy alive so the ids stay unique
     return fn
 
@@ -131,7 +132,10 @@ def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 
     positions, yaws = trial_starts(k_start, start, num_trials, yaw, spec)
     keys = jax.random.split(k_trials, num_trials)
     fn = make_rollout(env, policy, max_steps, render)
-    out = jax.device_get(fn(policy.params, keys, positions, yaws, jax.numpy.asarray(goal, jax.numpy.float32)))
+    goal = jax.numpy.asarray(goal, jax.numpy.float32)
+    if render:
+        goal = jax.numpy.broadcast_to(goal, (num_trials, 3))
+    out = jax.device_get(fn(policy.params, keys, positions, yaws, goal))
     out = {k: np.asarray(v) for k, v in out.items()}
     return trial_metrics(out, env.control_dt, np.asarray(positions), np.asarray(yaws))
 

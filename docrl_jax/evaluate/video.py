@@ -107,10 +107,8 @@ def trials_to_render(env, policy, scenario: int, direction: str, num_trials: int
     starts = jax.jit(jax.vmap(env.reset))(k_reset)
     positions, yaws, goals = (np.asarray(starts.info[k]) for k in ("position", "yaw", "goal"))
     fn = rollout.make_rollout(env, policy, max_steps, render=True)
-    outs = [jax.device_get(fn(policy.params, k_trial[i:i + 1], positions[i:i + 1], yaws[i:i + 1], goals[i]))
-            for i in range(num_trials)]
-    out = {k: np.concatenate([np.asarray(o[k]) for o in outs]) for k in outs[0]}
-    return rollout.trial_metrics(out, env.control_dt, positions, yaws)
+    out = jax.device_get(fn(policy.params, k_trial, positions, yaws, goals))
+    return rollout.trial_metrics({k: np.asarray(v) for k, v in out.items()}, env.control_dt, positions, yaws)
 
 
 def outcome_line(trials: dict[str, np.ndarray], i: int, dt: float) -> str:

@@ -56,7 +56,20 @@ def test_the_trials_are_the_evaluators(drawn):
     assert trials["success"].all()
 
 
-def test_frames_follow_the_trial(drawn):
+def test_random_trials_come_from_the_reset_distribution(env, drawn):
+    """N random trials run as one rollout (the module's compiled one: same N), one goal each."""
+    a = video.trials_to_render(env, straight_line(), 1, "random", N, None, MAX_STEPS)
+    b = video.trials_to_render(env, straight_line(), 1, "random", N, None, MAX_STEPS, seed=1)
+    goals = a["goal"][:, 0]
+    assert len({tuple(g) for g in np.round(goals, 4)}) == N and np.all(a["goal"] == goals[:, None])
+    assert not np.allclose(a["start_positions"], b["start_positions"])   # the seed picks them
+    np.testing.assert_array_equal(a["qpos"][:, 0, :3], a["start_positions"])
+    assert np.all(np.abs(goals[:, :2]) < 4.9) and np.all(np.abs(a["start_positions"][:, :2]) < 4.9)
+    np.testing.assert_array_equal(video.trials_to_render(env, straight_line(), 1, "random", N, None, MAX_STEPS)["qpos"],
+                                  a["qpos"])
+
+
+def test_frames_follow_the_trial(env, drawn):
     trials, tracks, frames, durations = drawn["air_to_water"]
     per_trial = [len(range(0, len(t), 4)) + ((len(t) - 1) % 4 != 0) for t in tracks]   # every 4th and the last
     assert [len(t) for t in tracks] == list(trials["steps"] + 1)
@@ -64,8 +77,7 @@ def test_frames_follow_the_trial(drawn):
     assert len(durations) == len(frames) and durations[per_trial[0] - 1] == pytest.approx(1 / FPS + video.HOLD_S)
     # The vehicle's pixels move in the overview (right half) while it flies 4 m: first vs last frame
     # of trial 1, where the vehicle is left out of the frame to find its pixels.
-    with Renderer(evaluate.make_eval_env(1, MAX_STEPS, z_bounds=LOW_FLOOR).mj_model, trials_env_params(),
-                  W, H, overlay=False, fan=False) as r:
+    with Renderer(env.mj_model, env.params, W, H, overlay=False, fan=False) as r:
         track = tracks[0]
         centres = []
         for t in (0, len(track) - 1):
@@ -77,10 +89,6 @@ def test_frames_follow_the_trial(drawn):
     assert np.linalg.norm(centres[0] - centres[1]) > 8, centres
     # Consecutive frames differ (the scene moves with the vehicle), the overlay says the outcome.
     assert np.abs(frames[1].astype(int) - frames[0]).mean() > 1
-
-
-def trials_env_params():
-    return evaluate.make_eval_env(1, MAX_STEPS, z_bounds=LOW_FLOOR).params
 
 
 def test_underwater_frames_are_tinted(drawn):
