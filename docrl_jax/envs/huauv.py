@@ -29,7 +29,7 @@ from docrl_jax.resources import resource_dir
 
 OBS_SIZE = 26
 ACTION_SIZE = 3
-DIST_SCALE = float(np.sqrt(9.8**2 + 9.8**2 + 6.1**2))  # inner tank diagonal, 15.2 m
+DIST_SCALE = float(np.sqrt(9.8**2 + 9.8**2 + 6.1**2))  # inner tank diagonal, 15.14 m
 OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 23, "elevation": 24,
               "distance": 25}
 TANK_HALF_WIDTH = 4.9  # inner wall faces at x, y = +-4.9 (orig 1.2)
