@@ -194,3 +194,20 @@ def test_the_warp_filter_passes_other_output_through(tmp_path, monkeypatch, caps
     monkeypatch.syspath_prepend(str(tmp_path))
     assert import_quietly("noisy_mod").__name__ == "noisy_mod"
     assert capsys.readouterr().out == "Failed to import warp: CUDA driver too old\nhello\n"
+
+
+@pytest.mark.parametrize("scenario", [2, 3])
+def test_static_scene_template_equals_mjx_forward(scenario):
+    """The env builds its Data template with MuJoCo's mj_forward on the CPU (no compile at start-up);
+    it must equal MJX's own forward pass of a fresh Data, leaf for leaf (geom poses are what the rays
+    read)."""
+    from mujoco import mjx
+    env = envs.make(scenario)
+    reference = jax.jit(mjx.forward)(env.mjx_model, mjx.make_data(env.mjx_model))
+    ours = jax.tree_util.tree_leaves_with_path(env._data0)
+    theirs = jax.tree_util.tree_leaves(reference)
+    assert len(ours) == len(theirs)
+    for (path, a), b in zip(ours, theirs):
+        assert a.shape == b.shape and a.dtype == b.dtype, jax.tree_util.keystr(path)
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), atol=1e-5, err_msg=jax.tree_util.keystr(path))
+    assert np.abs(np.asarray(env._data0.geom_xpos)).sum() > 0   # the static geoms are placed

@@ -1,0 +1,79 @@
+"""Start-up of two versions of the code, launch by launch: the train command's own `startup.json`
+(launch -> compiled, -> training, -> first chunk), cold (an empty compile cache) then warm (the same
+cache again), versions interleaved within each round.
+
+    # here: the old code beside the new (git-ignored .old/, as for benchmarks/ab_launches.sh)
+    rm -rf .old && mkdir .old && git archive REV docrl_jax configs assets | tar -x -C .old
+    # GPU machine (carry .old):
+    python3 benchmarks/ab_startup.py --rounds 3 --out DIR
+
+Each launch is `python -m docrl_jax.train --config td3_lstm --set train.total_env_steps=819200` (two
+chunks, so it starts learning and ends) in its own fresh process and run directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import run_meta  # noqa: E402
+
+KEYS = ("launch_to_compiled_s", "launch_to_training_s", "launch_to_first_chunk_s", "compile_s")
+
+
+def launch(root: str, cache: str, run_dir: str, config: str) -> dict:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root] + [p for p in os.environ.get("PYTHONPATH", "").split(
+        os.pathsep) if p and os.path.abspath(p) != os.path.abspath(os.getcwd())])}
+    subprocess.run([sys.executable, "-m", "docrl_jax.train", "--config", config, "--set",
+                    "train.total_env_steps=819200", "--run-dir", run_dir, "--compile-cache", cache, "--no-progress"],
+                   cwd=root, env=env, check=True, capture_output=True, text=True)
+    with open(os.path.join(run_dir, "startup.json")) as f:
+        return json.load(f)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--old", default=".old", help="the old version's checkout (docrl_jax, configs, assets)")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--config", default="td3_lstm")
+    ap.add_argument("--out", required=True)
+    args = ap.parse_args()
+    roots = {"old": os.path.abspath(args.old), "new": os.getcwd()}
+    rows = []
+    work = tempfile.mkdtemp(prefix="ab_startup_")
+    for r in range(args.rounds):
+        for side, root in roots.items():
+            cache = os.path.join(work, f"cache_{side}_{r}")
+            for state in ("cold", "warm"):
+                run_dir = os.path.join(work, f"run_{side}_{r}_{state}")
+                got = launch(root, cache, run_dir, args.config)
+                rows.append({"round": r, "version": side, "cache": state, **{k: got[k] for k in KEYS}})
+                print(side, state, r, got["launch_to_first_chunk_s"], flush=True)
+    summary = {f"{side} {state}": {k: statistics.median(x[k] for x in rows if x["version"] == side and x["cache"] == state)
+                                   for k in KEYS} for side in roots for state in ("cold", "warm")}
+    meta = run_meta()
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "ab_startup.json"), "w") as f:
+        json.dump({**meta, "rounds": rows, "medians": summary}, f, indent=1)
+    lines = [f"# Start-up, old and new code, launch by launch ({meta['gpu']}, {meta['date']})", "",
+             f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
+             f"Medians of {args.rounds} launches (s):", "",
+             "| version, cache | launch -> compiled | launch -> training | launch -> first chunk | compile |",
+             "|---|---|---|---|---|"]
+    lines += [f"| {name} | " + " | ".join(f"{v[k]:.2f}" for k in KEYS[:3] + KEYS[3:]) + " |"
+              for name, v in summary.items()]
+    lines += ["", "Every launch (s, launch -> first chunk): " + ", ".join(
+        f"{x['version']} {x['cache']} r{x['round']} {x['launch_to_first_chunk_s']:.2f}" for x in rows)]
+    with open(os.path.join(args.out, "ab_startup.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
