@@ -79,11 +79,17 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
+from docrl_jax.envs.sensors import beam_angles
 from docrl_jax.policy import Policy
 
 GO_FORWARD, CONTOUR, GO_TO_TARGET, DEPTH, HOLD = 0, 1, 2, 3, 4
 MODE_NAMES = ("go_forward", "contour", "go_to_target", "depth", "hold")
 DEPTH_PHASES = ("after", "first", "concurrent", "in_air")
+
+
+def label(depth_phase: str = "after") -> str:
+    """The method's name in tables and videos: "BBA", or "BBA (first)" for another depth phase."""
+    return "BBA" if depth_phase == "after" else f"BBA ({depth_phase})"
 
 
 @dataclass(frozen=True)
@@ -113,11 +119,6 @@ class BBAParams:
             raise ValueError(f"depth_phase {self.depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
 
 
-def _beam_angles(fov_deg: float) -> np.ndarray:
-    # Same convention as docrl_jax.envs.sensors.beam_angles: 20 beams, ends included, index 0 rightmost.
-    return np.deg2rad(np.linspace(-fov_deg / 2.0, fov_deg / 2.0, 20)).astype(np.float32)
-
-
 def _wrap(a):
     return jnp.arctan2(jnp.sin(a), jnp.cos(a))
 
@@ -128,8 +129,8 @@ def make_bba(env_params=None, **overrides) -> Policy:
         for name in ("lidar_fov_deg", "sonar_fov_deg", "max_forward_speed", "max_vertical_speed", "max_yaw_change"):
             overrides.setdefault(name, getattr(env_params, name))
     bp = BBAParams(**overrides)
-    lidar_angles = _beam_angles(bp.lidar_fov_deg)
-    sonar_angles = _beam_angles(bp.sonar_fov_deg)
+    lidar_angles = beam_angles(bp.lidar_fov_deg)
+    sonar_angles = beam_angles(bp.sonar_fov_deg)
     cone = np.deg2rad(bp.cone_half_angle_deg)
     rear = np.deg2rad(bp.rear_sector_deg)
     front = np.deg2rad(bp.front_sector_deg)

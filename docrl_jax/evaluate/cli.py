@@ -266,9 +266,8 @@ def load_policy_for(args, env_params, seed_index: int, run: str | None = None) -
     """(policy, label) for --policy or for one seed of the run directory `run`. Several run directories
     are labelled by their config's name, one by its folder's name."""
     if args.policy is not None:
-        from docrl_jax.baselines.bba import make_bba
-        default = "BBA" if args.bba_depth_phase == "after" else f"BBA ({args.bba_depth_phase})"
-        return make_bba(env_params, depth_phase=args.bba_depth_phase), args.label or default
+        from docrl_jax.baselines import bba
+        return bba.make_bba(env_params, depth_phase=args.bba_depth_phase), args.label or bba.label(args.bba_depth_phase)
     policy = runs.load_policy(run, seed_index=seed_index, which=args.which)
     print(f"{Path(run).name}: {policy.source}", flush=True)
     name = config_name(run) if len(args.run) > 1 else Path(run).resolve().name

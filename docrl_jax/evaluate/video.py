@@ -79,9 +79,9 @@ def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "f
                bba_depth_phase: str = "after"):
     """(policy, method label): one seed of a run directory, or the BBA baseline (run None)."""
     if run is None:
-        from docrl_jax.baselines.bba import make_bba
-        label = "BBA" if bba_depth_phase == "after" else f"BBA ({bba_depth_phase})"
-        return _shared(make_bba(env.params, depth_phase=bba_depth_phase), ("bba", id(env), bba_depth_phase)), label
+        from docrl_jax.baselines import bba
+        return (_shared(bba.make_bba(env.params, depth_phase=bba_depth_phase), ("bba", id(env), bba_depth_phase)),
+                bba.label(bba_depth_phase))
     from docrl_jax import runs
     policy = runs.load_policy(run, seed_index=seed_index, which=which)
     return _shared(policy, ("run", runs.read_config(run).agent)), Path(run).resolve().name
@@ -178,13 +178,11 @@ def write_video(path: str | os.PathLike, frames: np.ndarray, durations: Sequence
         raise ValueError(f"{path}: unknown video suffix; valid suffixes are {', '.join(SUFFIXES)}")
     imageio_for(suffix)
     import imageio.v2 as imageio
-    written = 0
     # imageio-ffmpeg starts ffmpeg with subprocess (fork + exec at once), which JAX's fork warning
     # is not about: it would be noise on every MP4.
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
-        written = _write_mp4(imageio, path, frames, durations, fps)
-    return written
+        return _write_mp4(imageio, path, frames, durations, fps)
 
 
 def _write_mp4(imageio, path: Path, frames: np.ndarray, durations: Sequence[float], fps: float) -> int:
@@ -328,10 +326,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(str(e))  # exits with status 2 and the usage line
     try:
         return _render(args, cfg)
-    except RenderError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except RunDirError as e:
+    except (RenderError, RunDirError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except OSError as e:
