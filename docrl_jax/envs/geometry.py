@@ -34,8 +34,9 @@ class Solids(NamedTuple):
     cap_radius: jnp.ndarray   # (nc,)
 
 
-def solids_from_model(model: mujoco.MjModel, include_walls: bool = True) -> Solids:
-    """Collects the group-1 boxes and capsules; walls and floor are those named wall_* / floor."""
+def solids_from_model(model: mujoco.MjModel, include_walls: bool = True, walls_only: bool = False) -> Solids:
+    """Collects the group-1 boxes and capsules; walls and floor are those named wall_* / floor.
+    `walls_only`: the four walls alone (a procedural tank places its floor and obstacles per episode)."""
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     boxes, caps = [], []
@@ -44,6 +45,8 @@ def solids_from_model(model: mujoco.MjModel, include_walls: bool = True) -> Soli
             continue
         name = model.geom(g).name
         if not include_walls and (name.startswith("wall") or name == "floor"):
+            continue
+        if walls_only and not name.startswith("wall"):
             continue
         pos, rot, size = data.geom_xpos[g].copy(), data.geom_xmat[g].reshape(3, 3).copy(), model.geom_size[g]
         if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
@@ -62,20 +65,33 @@ def solids_from_model(model: mujoco.MjModel, include_walls: bool = True) -> Soli
         cap_radius=f32([c[2] for c in caps], (-1,)))
 
 
+def concat(*parts: Solids) -> Solids:
+    """One `Solids` holding every solid of `parts`."""
+    return Solids(*(jnp.concatenate(leaves) for leaves in zip(*parts)))
+
+
+def box_distances(solids: Solids, p: jnp.ndarray) -> jnp.ndarray:
+    """Signed distance (nb,) from point p (3,) to each box."""
+    local = jnp.einsum("nji,nj->ni", solids.box_rot, p[None] - solids.box_pos)
+    q = jnp.abs(local) - solids.box_half
+    return jnp.linalg.norm(jnp.maximum(q, 0.0), axis=-1) + jnp.minimum(jnp.max(q, axis=-1), 0.0)
+
+
+def capsule_distances(solids: Solids, p: jnp.ndarray) -> jnp.ndarray:
+    """Signed distance (nc,) from point p (3,) to each capsule."""
+    ab = solids.cap_b - solids.cap_a
+    t = jnp.clip(jnp.sum((p[None] - solids.cap_a) * ab, -1) / jnp.sum(ab * ab, -1), 0.0, 1.0)
+    closest = solids.cap_a + t[:, None] * ab
+    return jnp.linalg.norm(p[None] - closest, axis=-1) - solids.cap_radius
+
+
 def signed_distance(solids: Solids, p: jnp.ndarray) -> jnp.ndarray:
     """Smallest signed distance from point p (3,) to any solid; +inf when there is none."""
     d = jnp.inf
     if solids.box_pos.shape[0]:
-        local = jnp.einsum("nji,nj->ni", solids.box_rot, p[None] - solids.box_pos)
-        q = jnp.abs(local) - solids.box_half
-        outside = jnp.linalg.norm(jnp.maximum(q, 0.0), axis=-1)
-        inside = jnp.minimum(jnp.max(q, axis=-1), 0.0)
-        d = jnp.minimum(d, jnp.min(outside + inside))
+        d = jnp.minimum(d, jnp.min(box_distances(solids, p)))
     if solids.cap_a.shape[0]:
-        ab = solids.cap_b - solids.cap_a
-        t = jnp.clip(jnp.sum((p[None] - solids.cap_a) * ab, -1) / jnp.sum(ab * ab, -1), 0.0, 1.0)
-        closest = solids.cap_a + t[:, None] * ab
-        d = jnp.minimum(d, jnp.min(jnp.linalg.norm(p[None] - closest, axis=-1) - solids.cap_radius))
+        d = jnp.minimum(d, jnp.min(capsule_distances(solids, p)))
     return jnp.asarray(d, jnp.float32)
 
 

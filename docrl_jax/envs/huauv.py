@@ -23,8 +23,8 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from docrl_jax.envs import geometry, physics, sensors
-from docrl_jax.envs.params import EnvParams
+from docrl_jax.envs import geometry, layouts, physics, randomization, sensors
+from docrl_jax.envs.params import EnvParams, MAX_LATENCY
 from docrl_jax.resources import resource_dir
 
 OBS_SIZE = 26
@@ -56,6 +56,10 @@ class SimState:
     goal: jax.Array           # (3,)
     step: jax.Array           # () int32 steps since reset
     key: jax.Array            # PRNG key for noise, wind and goal resampling
+    plant: physics.Plant      # the episode's true vehicle, water and sensors (domain randomisation)
+    layout: Any               # layouts.Layout of a procedural tank (scenario 0); None otherwise
+    actions: jax.Array        # (L, 3) the agent's last L actions, newest first (action latency; L may be 0)
+    observations: jax.Array   # (L, 26) the last L observations, newest first (observation latency)
 
 
 @struct.dataclass
@@ -68,7 +72,8 @@ class EnvState:
 
 
 def _scene_path(scenario: int) -> str:
-    return str(resource_dir("assets") / f"scenario_{scenario}.xml")
+    name = "procedural" if scenario == 0 else f"scenario_{scenario}"
+    return str(resource_dir("assets") / f"{name}.xml")
 
 
 class HUAUVEnv:
@@ -89,8 +94,17 @@ class HUAUVEnv:
         self.vehicle = physics.make_vehicle(self.mj_model.body_mass[self.body_id],
                                             self.mj_model.body_inertia[self.body_id],
                                             params.rotor_moment_constant)
-        self.solids = geometry.solids_from_model(self.mj_model)
-        self.obstacles = geometry.solids_from_model(self.mj_model, include_walls=False)
+        self.procedural = params.scenario == 0
+        if self.procedural:  # walls from the MJCF; floor and obstacles from each episode's layout
+            self.walls = geometry.solids_from_model(self.mj_model, walls_only=True)
+            self.slot_ids = layouts.slot_ids(self.mj_model)
+        else:
+            self.solids = geometry.solids_from_model(self.mj_model)
+            self.obstacles = geometry.solids_from_model(self.mj_model, include_walls=False)
+        # Queue lengths of the latencies (static: the largest delay the ranges allow).
+        self._action_queue = max(params.dr_action_latency)
+        self._obs_queue = max(params.dr_obs_latency)
+        assert max(self._action_queue, self._obs_queue) <= MAX_LATENCY
         # Template with the static geoms placed (rays read their poses from Data): MuJoCo's own
         # mj_forward on the CPU, then put on the device. Equal, leaf for leaf, to jit(mjx.forward) of
         # mjx.make_data, without compiling a program at every env build (seconds of start-up).
@@ -104,57 +118,94 @@ class HUAUVEnv:
     def control_dt(self) -> float:
         return self.params.control_dt
 
+    # ------------------------------------------------------------------ the episode's tank
+    def _tank(self, layout):
+        """(obstacles for the start/goal sampler, every solid for the hull check, lower z bound)."""
+        if not self.procedural:
+            return self.obstacles, self.solids, self.params.bounds[0]
+        z_min = layout.z_min if self.params.z_bounds is None else self.params.bounds[0]
+        return layouts.obstacles(layout), layouts.solids(layout, self.walls), z_min
+
+    def _cast(self, data, layout, position, rot, underwater):
+        """Noise-free ranges of the active fan, against the episode's tank."""
+        model = self.mjx_model
+        if self.procedural:
+            model, data = layouts.place(model, data, layout, self.slot_ids)
+        return sensors.cast(self.params, model, data, self.body_id, position, rot, underwater)
+
     # ------------------------------------------------------------------ sampling
-    def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, max_distance=np.inf, n=32):
+    def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, max_distance=np.inf, n=32,
+                      layout=None):
         """A free point for a start or goal: in air or water, clear of obstacles and walls."""
         p = self.params
+        obstacles, _, z_min = self._tank(layout)
         k_med, k_xy, k_z = jax.random.split(key, 3)
         water = jax.random.uniform(k_med) < water_fraction
-        lo, hi = jnp.where(water, jnp.asarray(p.water_z), jnp.asarray(p.air_z_range))
+        lo, hi = jnp.where(water, jnp.asarray(p.water_band(z_min)), jnp.asarray(p.air_z_range))
         half = TANK_HALF_WIDTH - p.wall_margin
         xy = jax.random.uniform(k_xy, (n, 2), minval=-half, maxval=half)
         z = jax.random.uniform(k_z, (n, 1), minval=lo, maxval=hi)
         cand = jnp.concatenate([xy, z], -1)
-        ok = jax.vmap(lambda c: geometry.signed_distance(self.obstacles, c))(cand) >= p.goal_clearance
+        ok = jax.vmap(lambda c: geometry.signed_distance(obstacles, c))(cand) >= p.goal_clearance
         if avoid is not None:
             gap = jnp.linalg.norm(cand - avoid, axis=-1)
             ok &= (gap >= min_distance) & (gap <= max_distance)
-        # Fallback if no candidate is valid (vanishingly rare): the tank centre column, known free.
-        fallback = jnp.where(water, jnp.array([0.0, 0.0, -0.6]), jnp.array([0.0, 0.0, 2.5]))
+        # Fallback if no candidate is valid (vanishingly rare): a point known to be free, the tank's
+        # centre column in the fixed scenarios, a point the layout kept clear in a procedural tank.
+        if self.procedural:
+            fallback = jnp.where(water, layout.clear[1], layout.clear[0])
+        else:
+            fallback = jnp.where(water, jnp.array([0.0, 0.0, -0.6]), jnp.array([0.0, 0.0, 2.5]))
         return jnp.where(jnp.any(ok), cand[jnp.argmax(ok)], fallback)
 
-    def sample_goal(self, key, position):
+    def sample_goal(self, key, position, layout=None):
         p = self.params
-        return self._sample_point(key, p.goal_water_fraction, position, p.min_goal_distance, p.max_goal_distance)
+        return self._sample_point(key, p.goal_water_fraction, position, p.min_goal_distance, p.max_goal_distance,
+                                  layout=layout)
 
     # ------------------------------------------------------------------ reset
-    def reset(self, key: jax.Array) -> EnvState:
-        """Random start (air or water), random yaw, random goal; level, at rest."""
+    def reset(self, key: jax.Array, layout=None, plant=None) -> EnvState:
+        """Random start (air or water), random yaw, random goal; level, at rest. A procedural tank
+        draws its layout from `key` unless `layout` is given (e.g. `layouts.held_out(i, params)`);
+        the plant is drawn from the `dr_*` ranges unless `plant` is given."""
         k_start, k_yaw, k_goal, k_rest = jax.random.split(key, 4)
-        start = self._sample_point(k_start, self.params.start_water_fraction)
+        if self.procedural and layout is None:
+            layout = layouts.draw(jax.random.fold_in(key, 1), self.params)
+        start = self._sample_point(k_start, self.params.start_water_fraction, layout=layout)
         yaw = jax.random.uniform(k_yaw, minval=-jnp.pi, maxval=jnp.pi)
-        return self.reset_to(k_rest, start, yaw, self.sample_goal(k_goal, start))
+        return self.reset_to(k_rest, start, yaw, self.sample_goal(k_goal, start, layout), layout=layout, plant=plant)
 
-    def reset_to(self, key: jax.Array, position, yaw, goal) -> EnvState:
-        """Vehicle at `position` with `yaw`, level and at rest, hovering thrust, heading for `goal`."""
+    def reset_to(self, key: jax.Array, position, yaw, goal, layout=None, plant=None) -> EnvState:
+        """Vehicle at `position` with `yaw`, level and at rest, hovering thrust, heading for `goal`. A
+        procedural tank without `layout` draws one that keeps `position` and `goal` clear."""
         p = self.params
         position = _one_env("reset_to", "position", jnp.asarray(position, jnp.float32), (3,))
         goal = _one_env("reset_to", "goal", jnp.asarray(goal, jnp.float32), (3,))
         yaw = _one_env("reset_to", "yaw", jnp.asarray(yaw, jnp.float32), ())
         k_wind, k_noise, k_next = jax.random.split(key, 3)
+        if self.procedural and layout is None:
+            k_layout = jax.random.fold_in(key, 1)
+            index = layouts.draw(k_layout, p).index
+            layout = layouts.generate(layouts.layout_key(index), p, clear=jnp.stack([position, goal]))
+            layout = layout.replace(index=index)
+        if plant is None:
+            plant = randomization.sample_plant(jax.random.fold_in(key, 2), p)
         quat = jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
         data = self._data0.replace(qpos=jnp.concatenate([position, quat]), qvel=jnp.zeros(6))
         # Wind starts from the OU process's stationary distribution (std sigma / sqrt(1 - (1-theta)^2)).
-        wind_std = p.wind_sigma / np.sqrt(max(1.0 - (1.0 - p.wind_theta) ** 2, 1e-6))
+        wind_std = plant.wind_sigma / np.sqrt(max(1.0 - (1.0 - p.wind_theta) ** 2, 1e-6))
         wind = wind_std * jax.random.normal(k_wind, (2,)) if p.wind else jnp.zeros(2)
-        sim = SimState(data=data, thrust=physics.hover_thrust(p, self.vehicle, position[2]),
-                       vel_integral=jnp.zeros(3), wind=wind, goal=goal, step=jnp.zeros((), jnp.int32),
-                       key=k_next)
         rot = physics.quat_to_mat(quat)
         underwater = position[2] < 0.0
-        true_ranges = sensors.cast(p, self.mjx_model, data, self.body_id, position, rot, underwater)
-        ranges = sensors.add_noise(p, k_noise, true_ranges, underwater)
+        true_ranges = self._cast(data, layout, position, rot, underwater)
+        ranges = sensors.corrupt(p, plant, k_noise, true_ranges, underwater)
         obs = self._observe(ranges, underwater, jnp.zeros(3), position, rot, goal)
+        sim = SimState(data=data, thrust=physics.hover_thrust(p, self.vehicle, position[2]),
+                       vel_integral=jnp.zeros(3), wind=wind, goal=goal, step=jnp.zeros((), jnp.int32),
+                       key=k_next, plant=plant, layout=layout,
+                       # Until the first action arrives the controller holds a hover, (-1, 0, 0).
+                       actions=jnp.tile(jnp.array([-1.0, 0.0, 0.0]), (self._action_queue, 1)),
+                       observations=jnp.tile(obs, (self._obs_queue, 1)))
         false = jnp.zeros((), bool)
         info = self._info(ranges, position, jnp.zeros(3), rot, goal, underwater, false, false, false, false,
                           false, sim.step, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
@@ -169,16 +220,18 @@ class HUAUVEnv:
         action = _one_env("step", "action", jnp.asarray(action, jnp.float32), (ACTION_SIZE,), "(ACTION_SIZE,)")
         finite = jnp.isfinite(action)
         action = jnp.clip(jnp.where(finite, action, 0.0), -1.0, 1.0)
-        command = physics.command_from_action(p, action)
+        # Action latency: the controller acts on the action of `plant.action_latency` steps ago.
+        queue = jnp.concatenate([action[None], sim.actions])
+        command = physics.command_from_action(p, queue[sim.plant.action_latency] if self._action_queue else action)
 
         # 2. Wind: OU update once per wind period (orig 2.6).
         wind = sim.wind
         if p.wind:
-            updated = wind + p.wind_theta * (0.0 - wind) + p.wind_sigma * jax.random.normal(k_wind, (2,))
+            updated = wind + p.wind_theta * (0.0 - wind) + sim.plant.wind_sigma * jax.random.normal(k_wind, (2,))
             wind = jnp.where(sim.step % self._wind_every == 0, updated, wind)
 
         # 3. Physics substeps.
-        dt = p.physics_dt
+        dt, plant = p.physics_dt, sim.plant
 
         def substep(carry, _):
             data, thrust, integral = carry
@@ -186,8 +239,8 @@ class HUAUVEnv:
             vel, omega = data.qvel[:3], data.qvel[3:6]
             frac = physics.submerged_fraction(pos[2], p.hull_height)
             rotor_cmd, integral = physics.controller(p, veh, rot, vel, omega, frac, integral, command, dt)
-            thrust = physics.rotor_response(p, thrust, rotor_cmd, physics.rotor_limits(p, pos, rot), dt)
-            wrench = physics.medium_wrench(p, veh, rot, vel, omega, thrust, wind, frac, dt)
+            thrust = physics.rotor_response(plant, thrust, rotor_cmd, physics.rotor_limits(plant, pos, rot), dt)
+            wrench = physics.medium_wrench(plant, veh, rot, vel, omega, thrust, wind, frac, dt)
             data = data.replace(xfrc_applied=data.xfrc_applied.at[self.body_id].set(wrench))
             return (mjx.step(self.mjx_model, data), thrust, integral), None
 
@@ -200,13 +253,14 @@ class HUAUVEnv:
         finite_state = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
         position = jnp.where(finite_state, position, sim.data.qpos[:3])
         underwater = position[2] < 0.0
-        true_ranges = sensors.cast(p, self.mjx_model, data, self.body_id, position, rot, underwater)
-        ranges = sensors.add_noise(p, k_noise, true_ranges, underwater)
+        true_ranges = self._cast(data, sim.layout, position, rot, underwater)
+        ranges = sensors.corrupt(p, plant, k_noise, true_ranges, underwater)
 
         # 5. Events and reward (collision on the noise-free geometry).
-        lo, hi = p.bounds
+        _, solids, lo = self._tank(sim.layout)
+        hi = p.bounds[1]
         collision = (jnp.min(true_ranges) < p.collision_distance) | (
-            geometry.hull_clearance(self.solids, position, rot) < 0.0)
+            geometry.hull_clearance(solids, position, rot) < 0.0)
         out_of_bounds = (position[2] < lo) | (position[2] > hi)
         terminated = collision | out_of_bounds | ~finite_state
         dist = jnp.linalg.norm(sim.goal - position)
@@ -222,18 +276,23 @@ class HUAUVEnv:
             done = done | arrived
             goal = sim.goal
         else:
-            goal = jnp.where(arrived, self.sample_goal(k_goal, position), sim.goal)
+            goal = jnp.where(arrived, self.sample_goal(k_goal, position, sim.layout), sim.goal)
 
         obs = self._observe(ranges, underwater, action, position, rot, goal)
+        # Observation latency: the agent sees the observation of `plant.obs_latency` steps ago.
+        observations = jnp.concatenate([obs[None], sim.observations])
+        if self._obs_queue:
+            obs = observations[plant.obs_latency]
         goals_reached = state.info["goals_reached"] + arrived.astype(jnp.int32)
         bad_action = jnp.sum(~finite).astype(jnp.int32)
         info = self._info(ranges, position, data.qvel[:3], rot, goal, underwater, arrived, terminated,
                           truncated, collision, out_of_bounds, step, goals_reached, bad_action)
         # A diverged physics state (never seen; guarded anyway) ends the episode without NaNs leaking out.
         data = jax.tree.map(lambda new, old: jnp.where(finite_state, new, old), data, sim.data)
-        sim = SimState(data=data, thrust=jnp.where(finite_state, thrust, sim.thrust),
-                       vel_integral=jnp.where(finite_state, integral, sim.vel_integral), wind=wind, goal=goal,
-                       step=step, key=key)
+        sim = sim.replace(data=data, thrust=jnp.where(finite_state, thrust, sim.thrust),
+                          vel_integral=jnp.where(finite_state, integral, sim.vel_integral), wind=wind, goal=goal,
+                          step=step, key=key, actions=queue[:self._action_queue],
+                          observations=observations[:self._obs_queue])
         return EnvState(sim=sim, obs=obs, reward=reward.astype(jnp.float32), done=done, info=info)
 
     # ------------------------------------------------------------------ rendering

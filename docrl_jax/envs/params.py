@@ -23,7 +23,9 @@ Vec3 = tuple[float, float, float]
 @dataclass(frozen=True)
 class EnvParams:
     # ---------------------------------------------------------------- task
-    scenario: int = documented(2, "Tank layout: 1 empty, 2 four risers, 3 fifteen obstacles (orig 1.3).")
+    scenario: int = documented(2, "Tank layout: 1 empty, 2 four risers, 3 fifteen obstacles (orig 1.3); 0 = procedural: "
+                                  "every episode draws its own layout (docrl_jax/envs/layouts.py, the layout_* "
+                                  "parameters below).")
     control_dt: float = documented(0.2, "Seconds per agent step: 5 Hz, the rate of the original's sensors (orig 2.4).")
     physics_dt: float = documented(0.01, "Physics substep in seconds; must divide control_dt and be <= 0.01 "
                                          "(the original Gazebo max_step_size).")
@@ -131,6 +133,55 @@ class EnvParams:
     water_current: Vec3 = documented((0.0, 0.0, 0.0),
         "Constant water current (m/s, world frame); the original's was zero.")
 
+    # ---------------------------------------------------------------- procedural tanks (scenario 0, ours)
+    # A layout is drawn per episode inside the compiled program (docrl_jax/envs/layouts.py): the
+    # tank's walls, a floor at a random depth and a random number of boxes and capsules in the slots of
+    # assets/procedural.xml, each a riser, a post, a wall panel or a beam, in air, water or both.
+    layout_floor_top: tuple[float, float] = documented((-2.0, -1.3),
+        "Range (m) of the floor's top: scenarios 1-2 have -1.3, scenario 3 -2.0. The lower bound is the "
+        "floor + 0.2 (as in every scenario).")
+    layout_boxes: tuple[int, int] = documented((3, 10),
+        "Range of the number of boxes (posts, wall panels, beams); at most the 12 box slots.")
+    layout_capsules: tuple[int, int] = documented((1, 5),
+        "Range of the number of capsules (risers of radius 0.2-0.6 m, tilted or horizontal bars); at most "
+        "the 6 capsule slots.")
+    layout_beam_fraction: float = documented(0.35,
+        "Probability that a box or capsule is a horizontal/tilted beam at a random height instead of "
+        "standing on the floor.")
+    layout_held_out: bool = documented(False,
+        "True: episodes draw from the held-out layouts (ids 0 .. layouts.HELD_OUT_IDS - 1, the robustness "
+        "benchmark's); False: from the training ids, which never include those.")
+
+    # ---------------------------------------------------------------- domain randomisation (ours)
+    # Per episode, the physics runs a plant drawn from these ranges (docrl_jax/envs/randomization.py);
+    # the controller keeps the nominal model above. Scales multiply the nominal value; (1, 1) and
+    # (0, 0) = off, the default everywhere.
+    dr_mass_scale: tuple[float, float] = documented((1.0, 1.0), "Vehicle mass and inertia x U(range).")
+    dr_hull_volume_scale: tuple[float, float] = documented((1.0, 1.0),
+        "Displaced volume (buoyancy) x U(range); nominal buoyancy is 2.5 % of the weight.")
+    dr_water_drag_scale: tuple[float, float] = documented((1.0, 1.0),
+        "Every water drag coefficient (linear, quadratic, angular) x U(range).")
+    dr_air_drag_scale: tuple[float, float] = documented((1.0, 1.0), "Every air drag coefficient x U(range).")
+    dr_added_mass_scale: tuple[float, float] = documented((1.0, 1.0), "Added mass and added inertia x U(range).")
+    dr_thrust_air_scale: tuple[float, float] = documented((1.0, 1.0), "Rotor thrust limit in air x U(range).")
+    dr_thrust_water_scale: tuple[float, float] = documented((1.0, 1.0), "Rotor thrust limit in water x U(range).")
+    dr_motor_tau_scale: tuple[float, float] = documented((1.0, 1.0),
+        "Rotor time constants (rising and falling) x U(range): motor lag.")
+    dr_wind_scale: tuple[float, float] = documented((1.0, 1.0),
+        "Wind gusts: the OU noise wind_sigma x U(range) (the stationary wind std scales alike).")
+    dr_current_speed: tuple[float, float] = documented((0.0, 0.0),
+        "Speed (m/s) of an extra water current, U(range), in a uniformly random direction in 3-D (added "
+        "to water_current).")
+    dr_range_noise_std: tuple[float, float] = documented((0.0, 0.0),
+        "Extra range noise std (m), U(range), added to sensor_noise_std for the episode.")
+    dr_beam_dropout: tuple[float, float] = documented((0.0, 0.0),
+        "Probability, U(range), that a beam reads the sensor's maximum range on a step (a lost return).")
+    dr_action_latency: tuple[int, int] = documented((0, 0),
+        "Whole control steps, uniform integer in the range, between the agent's action and the controller "
+        "acting on it (hover until the first arrives).")
+    dr_obs_latency: tuple[int, int] = documented((0, 0),
+        "Whole control steps, uniform integer in the range, by which the observation is late.")
+
     # ------------------------------------------------------------------------------------------
     @property
     def substeps(self) -> int:
@@ -140,14 +191,20 @@ class EnvParams:
     def bounds(self) -> tuple[float, float]:
         if self.z_bounds is not None:
             return tuple(self.z_bounds)
-        floor_top = -2.0 if self.scenario == 3 else -1.3
-        return (-1.1 if self.scenario != 3 else floor_top + 0.2, 4.8)
+        # Procedural tanks: the loosest bound here; each episode's own is its floor + 0.2 (layouts.py).
+        floor_top = {3: -2.0, 0: self.layout_floor_top[0]}.get(self.scenario, -1.3)
+        return (floor_top + 0.2, 4.8)
 
     @property
     def water_z(self) -> tuple[float, float]:
+        return self.water_band(self.bounds[0])
+
+    def water_band(self, z_min):
+        """Depths (low, high) of underwater starts/goals above the lower bound `z_min` (a number, or
+        a traced scalar: a procedural tank's own bound)."""
         if self.water_z_range is not None:
             return tuple(self.water_z_range)
-        return (self.bounds[0] + 0.1, -0.3)
+        return (z_min + 0.1, -0.3)
 
 
 def param_docs() -> dict[str, str]:
@@ -185,8 +242,9 @@ def validate(p: EnvParams) -> EnvParams:
                     or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
                                for v in value)):
                 _fail(name, value, f"must be a sequence of {n} finite numbers")
-    if p.scenario not in (1, 2, 3):
-        _fail("scenario", p.scenario, "valid scenarios are 1, 2, 3")
+    if p.scenario not in (0, 1, 2, 3):
+        _fail("scenario", p.scenario, "valid scenarios are 0 (procedural), 1, 2, 3")
+    _validate_ranges(p)
     if not 0 < p.physics_dt <= 0.01:
         _fail("physics_dt", p.physics_dt, "must be in (0, 0.01] s")
     if p.control_dt <= 0 or abs(p.substeps * p.physics_dt - p.control_dt) > 1e-9:
@@ -232,6 +290,39 @@ def validate(p: EnvParams) -> EnvParams:
     if not (wz[0] > lo and wz[1] < 0):
         _fail("water_z_range", wz, f"must lie in (z_min={lo}, 0)")
     return p
+
+
+# Slots of assets/procedural.xml (a test checks the file against these).
+BOX_SLOTS, CAPSULE_SLOTS = 12, 6
+MAX_LATENCY = 10  # control steps (2 s): the queues are this long at most
+
+
+def _validate_ranges(p: EnvParams) -> None:
+    """The (low, high) ranges of the procedural tanks and of the domain randomisation."""
+    def ordered(name, lo_ok, hi_ok, why, integer=False):
+        lo, hi = getattr(p, name)
+        if integer and not all(isinstance(v, int) for v in (lo, hi)):
+            _fail(name, (lo, hi), "must be (low, high) of whole numbers")
+        if not (lo <= hi and lo_ok(lo) and hi_ok(hi)):
+            _fail(name, (lo, hi), f"must be (low, high) with low <= high, {why}")
+
+    ordered("layout_floor_top", lambda v: v >= -4.4, lambda v: v <= -0.8, "both in [-4.4, -0.8] m (the walls "
+            "reach -4.6; the water band above the floor needs room)")
+    ordered("layout_boxes", lambda v: v >= 0, lambda v: v <= BOX_SLOTS, f"in [0, {BOX_SLOTS}] (the box slots)", True)
+    ordered("layout_capsules", lambda v: v >= 0, lambda v: v <= CAPSULE_SLOTS,
+            f"in [0, {CAPSULE_SLOTS}] (the capsule slots)", True)
+    if not 0.0 <= p.layout_beam_fraction <= 1.0:
+        _fail("layout_beam_fraction", p.layout_beam_fraction, "must be a probability in [0, 1]")
+    for name in ("dr_mass_scale", "dr_hull_volume_scale", "dr_water_drag_scale", "dr_air_drag_scale",
+                 "dr_added_mass_scale", "dr_thrust_air_scale", "dr_thrust_water_scale", "dr_motor_tau_scale",
+                 "dr_wind_scale"):
+        ordered(name, lambda v: v > 0, lambda v: v <= 100, "both in (0, 100] (a scale of the nominal value; "
+                "(1, 1) = off)")
+    ordered("dr_current_speed", lambda v: v >= 0, lambda v: v <= 2.0, "both in [0, 2] m/s")
+    ordered("dr_range_noise_std", lambda v: v >= 0, lambda v: v <= 5.0, "both in [0, 5] m")
+    ordered("dr_beam_dropout", lambda v: v >= 0, lambda v: v <= 1.0, "both probabilities in [0, 1]")
+    for name in ("dr_action_latency", "dr_obs_latency"):
+        ordered(name, lambda v: v >= 0, lambda v: v <= MAX_LATENCY, f"in [0, {MAX_LATENCY}] control steps", True)
 
 
 def make_params(scenario: int = 2, **overrides: Any) -> EnvParams:

@@ -33,6 +33,33 @@ ROTOR_POS = np.array([[0.19725, 0.19725, 0.035],     # front left, cw
 ROTOR_YAW_SIGN = np.array([1.0, -1.0, 1.0, -1.0], dtype=np.float32)
 
 
+class Plant(NamedTuple):
+    """The vehicle and water the physics runs in one episode: the nominal values of `EnvParams`, or a
+    draw of the domain randomisation (docrl_jax/envs/randomization.py). Only the physics reads it: the
+    controller keeps the nominal model (`EnvParams`), so a drawn plant is a model mismatch. Leaves are
+    scalars or (3,) arrays, batched under `vmap` like the rest of the state."""
+    mass_scale: jnp.ndarray           # () true mass and inertia / the MJCF's
+    buoyancy: jnp.ndarray             # () N at full immersion: water density x hull volume x g
+    added_mass: jnp.ndarray           # (3,) kg, body axes
+    added_inertia: jnp.ndarray        # (3,) kg m^2
+    water_linear_drag: jnp.ndarray    # (3,)
+    water_quadratic_drag: jnp.ndarray  # (3,)
+    water_angular_drag: jnp.ndarray   # (3,)
+    air_linear_drag: jnp.ndarray      # (3,)
+    air_quadratic_drag: jnp.ndarray   # (3,)
+    thrust_air: jnp.ndarray           # () N per rotor
+    thrust_water: jnp.ndarray         # () N per rotor
+    tau_up: jnp.ndarray               # () s
+    tau_down: jnp.ndarray             # () s
+    moment_constant: jnp.ndarray      # () m
+    wind_sigma: jnp.ndarray           # () m/s OU noise per update
+    current: jnp.ndarray              # (3,) m/s world frame
+    noise_std: jnp.ndarray            # () m range noise
+    dropout: jnp.ndarray              # () probability a beam reads its maximum
+    action_latency: jnp.ndarray       # () int32 control steps
+    obs_latency: jnp.ndarray          # () int32 control steps
+
+
 class Vehicle(NamedTuple):
     """Constants of the rigid body, read from the MJCF model."""
     mass: float
@@ -144,21 +171,21 @@ def controller(p: EnvParams, veh: Vehicle, rot, vel, omega, frac, integral, comm
     return rotor_cmd, integral
 
 
-def rotor_limits(p: EnvParams, position, rot) -> jnp.ndarray:
+def rotor_limits(plant: Plant, position, rot) -> jnp.ndarray:
     """Per-rotor thrust limit, blended by each rotor's own immersion (rotor disk band 0.04 m)."""
     rotor_z = position[2] + (jnp.asarray(ROTOR_POS) @ rot.T)[:, 2]
     wet = submerged_fraction(rotor_z, 0.04)
-    return (1.0 - wet) * p.rotor_max_thrust_air + wet * p.rotor_max_thrust_water
+    return (1.0 - wet) * plant.thrust_air + wet * plant.thrust_water
 
 
-def rotor_response(p: EnvParams, thrust, command, limit, dt) -> jnp.ndarray:
+def rotor_response(plant: Plant, thrust, command, limit, dt) -> jnp.ndarray:
     """First-order motor lag (RotorS time constants, faster up than down), clipped to the limits."""
     command = jnp.clip(command, 0.0, limit)
-    tau = jnp.where(command > thrust, p.rotor_tau_up, p.rotor_tau_down)
+    tau = jnp.where(command > thrust, plant.tau_up, plant.tau_down)
     return thrust + (command - thrust) * (1.0 - jnp.exp(-dt / tau))
 
 
-def medium_wrench(p: EnvParams, veh: Vehicle, rot, vel, omega, thrust, wind_xy, frac, dt) -> jnp.ndarray:
+def medium_wrench(plant: Plant, veh: Vehicle, rot, vel, omega, thrust, wind_xy, frac, dt) -> jnp.ndarray:
     """World-frame [force, torque] to put in `xfrc_applied` (MuJoCo adds gravity itself).
 
     Physical forces: rotor thrust and yaw moments; buoyancy rho_w * V * g * frac at the centre of mass
@@ -170,18 +197,21 @@ def medium_wrench(p: EnvParams, veh: Vehicle, rot, vel, omega, thrust, wind_xy, 
 
     Added mass: MuJoCo cannot change a body's mass per step, so we apply the force that gives the
     acceleration the heavier body would have: a = F_net / (m + frac * m_A) per body axis, then
-    F_applied = m * a - m * g. The same for rotation with the added inertia.
+    F_applied = m * a - m * g. The same for rotation with the added inertia. A plant whose mass differs
+    from the MJCF's (domain randomisation) is the same device: its weight and inertia enter F_net and
+    the effective mass, and MuJoCo's body keeps the MJCF's.
     """
     m = veh.mass
     inertia = jnp.asarray(veh.inertia)
     g_vec = jnp.array([0.0, 0.0, -GRAVITY])
-    m_eff = m + frac * jnp.asarray(p.added_mass)                # (3,) body axes
-    inertia_eff = inertia + frac * jnp.asarray(p.added_inertia)
+    m_true = m * plant.mass_scale
+    m_eff = m_true + frac * plant.added_mass                   # (3,) body axes
+    inertia_eff = inertia * plant.mass_scale + frac * plant.added_inertia
 
     rotor_pos = jnp.asarray(ROTOR_POS)
     f_rot_b = jnp.array([0.0, 0.0, jnp.sum(thrust)])
     tau_rot_b = jnp.sum(jnp.cross(rotor_pos, jnp.stack([jnp.zeros(4), jnp.zeros(4), thrust], -1)), 0)
-    tau_rot_b = tau_rot_b + jnp.array([0.0, 0.0, jnp.sum(ROTOR_YAW_SIGN * p.rotor_moment_constant * thrust)])
+    tau_rot_b = tau_rot_b + jnp.array([0.0, 0.0, jnp.sum(ROTOR_YAW_SIGN * plant.moment_constant * thrust)])
 
     def drag(v_rel_world, lin, quad):
         v_b = rot.T @ v_rel_world
@@ -189,13 +219,13 @@ def medium_wrench(p: EnvParams, veh: Vehicle, rot, vel, omega, thrust, wind_xy, 
         return -k * v_b / (1.0 + k * dt / m_eff)
 
     wind3 = jnp.array([wind_xy[0], wind_xy[1], 0.0])
-    f_drag_b = (frac * drag(vel - jnp.asarray(p.water_current), p.water_linear_drag, p.water_quadratic_drag)
-                + (1.0 - frac) * drag(vel - wind3, p.air_linear_drag, p.air_quadratic_drag))
-    k_ang = jnp.asarray(p.water_angular_drag) * (1.0 + jnp.abs(omega))   # linear + quadratic, UUV values
+    f_drag_b = (frac * drag(vel - plant.current, plant.water_linear_drag, plant.water_quadratic_drag)
+                + (1.0 - frac) * drag(vel - wind3, plant.air_linear_drag, plant.air_quadratic_drag))
+    k_ang = plant.water_angular_drag * (1.0 + jnp.abs(omega))   # linear + quadratic, UUV values
     tau_drag_b = -frac * k_ang * omega / (1.0 + frac * k_ang * dt / inertia_eff)
 
-    f_buoy = jnp.array([0.0, 0.0, frac * p.water_density * p.hull_volume * GRAVITY])
-    f_net = rot @ (f_rot_b + f_drag_b) + f_buoy + m * g_vec
+    f_buoy = jnp.array([0.0, 0.0, frac * plant.buoyancy])
+    f_net = rot @ (f_rot_b + f_drag_b) + f_buoy + m_true * g_vec
     acc = rot @ ((rot.T @ f_net) / m_eff)
     force = m * acc - m * g_vec
     torque = rot @ (inertia * (tau_rot_b + tau_drag_b) / inertia_eff)

@@ -377,5 +377,20 @@ def render_states(env, states: Any, camera: str = "both", width: int = 640, heig
                   fan: bool = True, overlay: bool = True) -> np.ndarray:
     """Frames (T, H, W, 3) uint8 of `env`'s states (see `HUAUVEnv.render`)."""
     track = track_from_states(states)
-    with Renderer(env.mj_model, env.params, width, height, camera, fan, overlay) as r:
+    with Renderer(scene_model(env, states), env.params, width, height, camera, fan, overlay) as r:
         return r.render_track(track, last=False)
+
+
+def scene_model(env, states: Any) -> mujoco.MjModel:
+    """The MuJoCo model to draw `states` in: the env's own, or for a procedural tank (scenario 0) the
+    tank of the first state's layout (one episode's states share it)."""
+    if not getattr(env, "procedural", False):
+        return env.mj_model
+    import jax
+    from docrl_jax.envs import layouts
+    from docrl_jax.envs.huauv import _scene_path
+    first = states[0] if isinstance(states, (list, tuple)) else states
+    layout = jax.device_get(first.sim.layout)
+    if np.ndim(layout.z_min):
+        layout = jax.tree.map(lambda x: np.asarray(x)[0], layout)
+    return layouts.mj_model(layout, _scene_path(env.params.scenario))

@@ -47,9 +47,14 @@ def cast(p: EnvParams, model: mjx.Model, data: mjx.Data, vehicle_body: int, posi
     return jnp.where(dist < 0.0, limit, jnp.minimum(dist, limit))
 
 
-def add_noise(p: EnvParams, key: jax.Array, ranges: jnp.ndarray, underwater) -> jnp.ndarray:
-    """Gaussian range noise (sensor_noise_std), kept inside [0, max range]."""
-    if p.sensor_noise_std == 0.0:
-        return ranges
-    noisy = ranges + p.sensor_noise_std * jax.random.normal(key, ranges.shape)
-    return jnp.clip(noisy, 0.0, max_range(p, underwater))
+def corrupt(p: EnvParams, plant, key: jax.Array, ranges: jnp.ndarray, underwater) -> jnp.ndarray:
+    """What the sensor reports: Gaussian range noise of the episode's `plant.noise_std` (kept inside
+    [0, max range]) and beam dropouts (a lost return reads the maximum range, probability
+    `plant.dropout` per beam and step). Nothing is drawn when the parameters allow neither."""
+    limit = max_range(p, underwater)
+    if p.sensor_noise_std != 0.0 or p.dr_range_noise_std != (0.0, 0.0):
+        noisy = ranges + plant.noise_std * jax.random.normal(key, ranges.shape)
+        ranges = jnp.clip(noisy, 0.0, limit)
+    if p.dr_beam_dropout != (0.0, 0.0):
+        ranges = jnp.where(jax.random.uniform(jax.random.fold_in(key, 1), ranges.shape) < plant.dropout, limit, ranges)
+    return ranges

@@ -19,7 +19,7 @@ def test_make_rejects_unknown_names_listing_valid_ones():
 
 
 @pytest.mark.parametrize("kwargs, fragment", [
-    ({"scenario": 4}, "valid scenarios are 1, 2, 3"),
+    ({"scenario": 4}, "valid scenarios are 0 \\(procedural\\), 1, 2, 3"),
     ({"sensor_noise_std": -0.1}, "sensor_noise_std"),
     ({"wind": "yes"}, "must be a bool"),
     ({"physics_dt": 0.02}, r"physics_dt.*\(0, 0.01\]"),

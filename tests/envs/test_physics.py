@@ -8,6 +8,7 @@ import pytest
 
 from docrl_jax.envs import physics
 from docrl_jax.envs.params import make_params
+from docrl_jax.envs.randomization import nominal_plant
 
 HOVER = (-1.0, 0.0, 0.0)
 # Parameter sets shared by several tests (each distinct set costs one compile).
@@ -83,8 +84,8 @@ def test_medium_forces_buoyancy_drag_and_free_fall():
     p = make_params(1, wind=False)
     veh = physics.make_vehicle(2.08, np.array([0.0347563, 0.0458929, 0.0806492]), p.rotor_moment_constant)
     eye, zero3, zero4 = jnp.eye(3), jnp.zeros(3), jnp.zeros(4)
-    w = lambda frac, vel=zero3, p=p, wind=jnp.zeros(2): physics.medium_wrench(p, veh, eye, vel, zero3, zero4, wind,
-                                                                              frac, 0.01)
+    w = lambda frac, vel=zero3, p=p, wind=jnp.zeros(2): physics.medium_wrench(nominal_plant(p), veh, eye, vel, zero3,
+                                                                              zero4, wind, frac, 0.01)
     # In air, at rest, rotors off: nothing but gravity acts (free fall at g).
     np.testing.assert_allclose(np.asarray(w(0.0)), 0.0, atol=1e-6)
     # Buoyancy pushes up, only in water, by rho g V (scaled by m / (m + m_A) for the added mass).
@@ -107,7 +108,7 @@ def test_medium_forces_buoyancy_drag_and_free_fall():
 def test_wind_pushes_only_in_air():
     p = make_params(1, wind=True)
     veh = physics.make_vehicle(2.08, np.array([0.0347563, 0.0458929, 0.0806492]), p.rotor_moment_constant)
-    args = lambda frac, wind: (p, veh, jnp.eye(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(4), wind, frac, 0.01)
+    args = lambda frac, wind: (nominal_plant(p), veh, jnp.eye(3), jnp.zeros(3), jnp.zeros(3), jnp.zeros(4), wind, frac, 0.01)
     gust = jnp.array([1.0, -0.5])
     d_air = np.asarray(physics.medium_wrench(*args(0.0, gust)) - physics.medium_wrench(*args(0.0, jnp.zeros(2))))
     d_water = np.asarray(physics.medium_wrench(*args(1.0, gust)) - physics.medium_wrench(*args(1.0, jnp.zeros(2))))
