@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 SOLID_GROUP = 1  # walls, floor and obstacles (assets/common.xml)
+TANK_HALF_WIDTH = 4.9  # inner wall faces at x, y = +-4.9 (assets/common.xml; orig 1.2)
 
 # Spheres covering the 0.47 x 0.47 x 0.09 m hull box: centres on a 3 x 3 grid in the body x-y plane,
 # radius = distance from a grid point to the farthest corner of its cell (0.119 m), rounded up.

@@ -32,7 +32,6 @@ ACTION_SIZE = 3
 DIST_SCALE = float(np.sqrt(9.8**2 + 9.8**2 + 6.1**2))  # inner tank diagonal, 15.14 m
 OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 23, "elevation": 24,
               "distance": 25}
-TANK_HALF_WIDTH = 4.9  # inner wall faces at x, y = +-4.9 (orig 1.2)
 
 
 def _one_env(method: str, name: str, x: jax.Array, shape: tuple, size_name: str = "") -> jax.Array:
@@ -72,8 +71,7 @@ class EnvState:
 
 
 def _scene_path(scenario: int) -> str:
-    name = "procedural" if scenario == 0 else f"scenario_{scenario}"
-    return str(resource_dir("assets") / f"{name}.xml")
+    return str(resource_dir("assets") / (layouts.SCENE if scenario == 0 else f"scenario_{scenario}.xml"))
 
 
 class HUAUVEnv:
@@ -142,7 +140,7 @@ class HUAUVEnv:
         k_med, k_xy, k_z = jax.random.split(key, 3)
         water = jax.random.uniform(k_med) < water_fraction
         lo, hi = jnp.where(water, jnp.asarray(p.water_band(z_min)), jnp.asarray(p.air_z_range))
-        half = TANK_HALF_WIDTH - p.wall_margin
+        half = geometry.TANK_HALF_WIDTH - p.wall_margin
         xy = jax.random.uniform(k_xy, (n, 2), minval=-half, maxval=half)
         z = jax.random.uniform(k_z, (n, 1), minval=lo, maxval=hi)
         cand = jnp.concatenate([xy, z], -1)

@@ -34,7 +34,9 @@ from flax import struct
 
 from docrl_jax.envs import geometry
 from docrl_jax.envs.params import BOX_SLOTS, CAPSULE_SLOTS, EnvParams
+from docrl_jax.resources import resource_dir
 
+SCENE = "procedural.xml"
 HELD_OUT_IDS = 10_000
 _ROOT_SEED = 0x6C61796F  # the layouts' own PRNG root ("layo"), apart from every training seed
 SLOT_NAMES = (("floor",) + tuple(f"slot_box_{i}" for i in range(BOX_SLOTS))
@@ -129,7 +131,7 @@ def _capsules(key, p: EnvParams, floor_top, z_min):
 def _clear_points(key, p: EnvParams, z_min):
     """A point in air and one in water, inside the walls' margin: kept free by `generate`."""
     k_xy, k_air, k_water = jax.random.split(key, 3)
-    half = 4.9 - p.wall_margin
+    half = geometry.TANK_HALF_WIDTH - p.wall_margin
     xy = jax.random.uniform(k_xy, (2, 2), minval=-half, maxval=half)
     air = jax.random.uniform(k_air, (), minval=p.air_z_range[0], maxval=p.air_z_range[1])
     lo, hi = p.water_band(z_min)
@@ -199,11 +201,11 @@ def place(mjx_model, data, layout: Layout, ids: np.ndarray):
     return model, data
 
 
-def mj_model(layout: Layout, scene_path: str) -> mujoco.MjModel:
-    """A MuJoCo model of `scene_path` (assets/procedural.xml) with one (unbatched) layout compiled in:
+def mj_model(layout: Layout) -> mujoco.MjModel:
+    """A MuJoCo model of the procedural scene (assets/procedural.xml) with one (unbatched) layout compiled in:
     `mujoco.mj_ray` and the renderer then see the tank the env's sensors see (compiled, so MuJoCo's
     own bounding volumes match the new sizes)."""
-    spec = mujoco.MjSpec.from_file(scene_path)
+    spec = mujoco.MjSpec.from_file(str(resource_dir("assets") / SCENE))
     pos, rot, size = (np.asarray(x, np.float64) for x in (layout.pos, layout.rot, layout.size))
     for i, name in enumerate(SLOT_NAMES):
         quat = np.zeros(4)

@@ -30,12 +30,12 @@ import mujoco
 import numpy as np
 
 from docrl_jax.envs import sensors
+from docrl_jax.envs.geometry import TANK_HALF_WIDTH
 from docrl_jax.envs.params import EnvParams
 from docrl_jax.errors import RenderError, short_reason
 
 CAMERAS = ("both", "follow", "overview")
 
-TANK = 4.9                                   # inner wall faces at x, y = +-4.9 (huauv.TANK_HALF_WIDTH)
 WATER_RGBA = (0.05, 0.55, 0.6, 0.22)         # the water volume seen from above
 SURFACE_RGBA = (0.3, 0.95, 1.0, 1.0)         # the surface line on the walls
 TINT_RGB = np.array([20.0, 95.0, 105.0])     # blended over a view whose camera is under water
@@ -267,8 +267,9 @@ class Renderer:
                     g.rgba[3] = 0.12
                     g.transparent = 1
         depth = -self.floor_top
-        self._add(scene, mujoco.mjtGeom.mjGEOM_BOX, (TANK, TANK, depth / 2), (0, 0, -depth / 2), WATER_RGBA)
-        corners = [(-TANK, -TANK), (TANK, -TANK), (TANK, TANK), (-TANK, TANK), (-TANK, -TANK)]
+        t = TANK_HALF_WIDTH
+        self._add(scene, mujoco.mjtGeom.mjGEOM_BOX, (t, t, depth / 2), (0, 0, -depth / 2), WATER_RGBA)
+        corners = [(-t, -t), (t, -t), (t, t), (-t, t), (-t, -t)]
         for (x0, y0), (x1, y1) in zip(corners[:-1], corners[1:]):
             self._line(scene, (x0, y0, 0.0), (x1, y1, 0.0), SURFACE_RGBA, 3.0)
         r = self.params.arrival_distance
@@ -388,9 +389,8 @@ def scene_model(env, states: Any) -> mujoco.MjModel:
         return env.mj_model
     import jax
     from docrl_jax.envs import layouts
-    from docrl_jax.envs.huauv import _scene_path
     first = states[0] if isinstance(states, (list, tuple)) else states
     layout = jax.device_get(first.sim.layout)
     if np.ndim(layout.z_min):
         layout = jax.tree.map(lambda x: np.asarray(x)[0], layout)
-    return layouts.mj_model(layout, _scene_path(env.params.scenario))
+    return layouts.mj_model(layout)
