@@ -6,6 +6,10 @@ This rollout is separate from the trainer's in-training evaluation because it re
 length and the trajectory figures need. The trainer's is a `while_loop` that stops once every episode
 has ended and returns outcomes only, which is all a training-time score needs and much cheaper.
 
+Trials start either from poses (`run_trials`: the paper's pairs, `env.reset_to` inside the
+rollout) or from given initial states (`run_from_states`: e.g. `env.reset(key, layout=...)` of a
+held-out procedural layout, made by `reset_states`); both run the one scan of `make_rollout`.
+
 A trial ends at arrival (3-D distance < the env's `arrival_distance`), at a collision or leaving the
 vertical bounds (the env's `terminated`), or after `max_steps` control steps. The vehicle state
 freezes once a trial is done, so per-step records past the end repeat the final pose.
@@ -25,19 +29,31 @@ from docrl_jax.evaluate.tables import summarize
 _ENVS: dict = {}
 
 
+def _eval_settings(max_steps: int, overrides: dict) -> dict:
+    kw = dict(DEFAULT_EVAL_ENV)
+    kw.update({k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()})
+    kw["terminate_on_arrival"] = True
+    kw["max_episode_steps"] = int(max_steps)
+    return kw
+
+
 def make_eval_env(scenario: int, max_steps: int = 500, **overrides):
     """The environment of the evaluation: episodes end at arrival; `max_steps` steps at most.
 
     Cached per settings, so repeated evaluations in one process reuse the env and its compiled rollouts."""
     import docrl_jax.envs as envs
-    kw = dict(DEFAULT_EVAL_ENV)
-    kw.update({k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()})
-    kw["terminate_on_arrival"] = True
-    kw["max_episode_steps"] = int(max_steps)
+    kw = _eval_settings(max_steps, overrides)
     key = (int(scenario), tuple(sorted(kw.items())))
     if key not in _ENVS:
         _ENVS[key] = envs.make(scenario=scenario, **kw)
     return _ENVS[key]
+
+
+def eval_params(scenario: int, max_steps: int = 500, **overrides):
+    """The `EnvParams` of `make_eval_env(scenario, max_steps, **overrides)`, validated, without
+    building the env (no MuJoCo model)."""
+    from docrl_jax.envs import make_params
+    return make_params(scenario, **_eval_settings(max_steps, overrides))
 
 
 _ROLLOUTS: dict = {}
@@ -48,28 +64,38 @@ _ROLLOUTS: dict = {}
 RENDER_RECORDS = ("qpos", "goal", "ranges", "underwater", "distance")
 
 
-def _cache_key(env, policy, max_steps: int, render: bool = False) -> tuple:
-    return id(env), id(policy.act), id(policy.init_carry), int(max_steps), bool(render)
+def _cache_key(env, policy, max_steps: int, render: bool = False, from_states: bool = False) -> tuple:
+    return id(env), id(policy.act), id(policy.init_carry), int(max_steps), bool(render), bool(from_states)
 
 
-def make_rollout(env, policy, max_steps: int, render: bool = False):
+def split_trial_key(key):
+    """(reset key, policy key) of one trial's key: the reset key starts the env (`env.reset_to` draws
+    the wind, the noise and the episode's plant from it), the policy key drives the policy."""
+    import jax
+    return jax.random.split(key)
+
+
+def make_rollout(env, policy, max_steps: int, render: bool = False, from_states: bool = False):
     """jit(vmap(scan)) over trials: (params, keys (N,2), positions (N,3), yaws (N,), goal (3,)) -> records.
 
-    Cached per (env, policy.act, max_steps, render), so calling again with other params or trials
-    reuses the compiled function (a new N retraces once). `render=True` also records `RENDER_RECORDS`
-    (N, T+1, ...) for the renderer (docrl_jax.evaluate.video) and takes one goal per trial (N, 3)
-    (random starts and goals): the same trials, the same computation, a separate program so that the
-    evaluator's own carries nothing more.
+    Cached per (env, policy.act, max_steps, render, from_states), so calling again with other params or
+    trials reuses the compiled function (a new N retraces once). `render=True` also records
+    `RENDER_RECORDS` (N, T+1, ...) for the renderer (docrl_jax.evaluate.video) and takes one goal per
+    trial (N, 3) (random starts and goals): the same trials, the same computation, a separate program
+    so that the evaluator's own carries nothing more.
+
+    `from_states=True`: (params, keys (N,2), states) -> records, where `states` is an `EnvState` with a
+    leading trial axis (`reset_states`, `start_states`) and each key is the trial's policy key: the
+    trials start from given states (a layout, a plant, a start drawn by `env.reset`) and run the same
+    scan. The states must have this env's structure (its latency queues, procedural or not).
     """
-    cache_key = _cache_key(env, policy, max_steps, render)
+    cache_key = _cache_key(env, policy, max_steps, render, from_states)
     if cache_key in _ROLLOUTS:
         return _ROLLOUTS[cache_key][0]
     import jax
     import jax.numpy as jnp
 
-    def one_trial(params, key, position, yaw, goal):
-        k_reset, k_policy = jax.random.split(key)
-        state0 = env.reset_to(k_reset, position, yaw, goal)
+    def episode(params, k_policy, state0):
         carry0 = policy.init_carry()
 
         def body(c, k):
@@ -101,7 +127,14 @@ def make_rollout(env, policy, max_steps: int, render: bool = False):
             out.update({k: jnp.concatenate([first[k][None], rec[k]], 0) for k in RENDER_RECORDS})
         return out
 
-    fn = jax.jit(jax.vmap(one_trial, in_axes=(None, 0, 0, 0, 0 if render else None)))
+    def one_trial(params, key, position, yaw, goal):
+        k_reset, k_policy = split_trial_key(key)
+        return episode(params, k_policy, env.reset_to(k_reset, position, yaw, goal))
+
+    if from_states:
+        fn = jax.jit(jax.vmap(episode, in_axes=(None, 0, 0)))
+    else:
+        fn = jax.jit(jax.vmap(one_trial, in_axes=(None, 0, 0, 0, 0 if render else None)))
     _ROLLOUTS[cache_key] = (fn, env, policy)  # keep env/policy alive so the ids stay unique
     return fn
 
@@ -112,7 +145,8 @@ def _render_records(state) -> dict:
 
 
 def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 500,
-               yaw: float = 0.0, spec: TrialSpec = TrialSpec(), render: bool = False) -> dict[str, np.ndarray]:
+               yaw: float = 0.0, spec: TrialSpec = TrialSpec(), render: bool = False,
+               plants_of=None) -> dict[str, np.ndarray]:
     """Runs `num_trials` trials of `policy` from (jittered) `start` to `goal` as one vmapped rollout.
 
     Returns numpy arrays, leading axis = trial: positions (N, T+1, 3) (frozen after the end),
@@ -120,24 +154,94 @@ def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 
     path_length (N,), success/collision/out_of_bounds/timeout/diverged (N,) bool, final_distance,
     episode_return, start_positions (N, 3), start_yaws (N,), and the raw per-step records; with
     `render`, also `RENDER_RECORDS` (N, T+1, ...) (see `make_rollout`).
+
+    `plants_of` (an `EnvParams`): each trial's plant (true vehicle, water, wind, sensors, delays) is
+    the one an env of those parameters draws from the trial's key (`plants_for`), `env` does all
+    else. These are the trials `run_trials(env_of_those_params, ...)` runs, from one compiled program
+    for every plant `env`'s structure admits (its latency queues, whether range noise and dropouts
+    are drawn): the robustness benchmark's perturbations (docrl_jax.evaluate.robustness). They run
+    from states (`start_states`, `make_rollout(from_states=True)`).
     """
     import jax
-    if not getattr(env.params, "terminate_on_arrival", False):
-        raise ValueError("run_trials needs an env with terminate_on_arrival=True (use make_eval_env)")
-    if num_trials <= 0:
-        raise ValueError(f"num_trials={num_trials}: must be a positive integer")
-    if max_steps <= 0:
-        raise ValueError(f"max_steps={max_steps}: must be a positive integer")
+    _check_trials(env, num_trials, max_steps, "run_trials")
     k_start, k_trials = jax.random.split(key)
     positions, yaws = trial_starts(k_start, start, num_trials, yaw, spec)
     keys = jax.random.split(k_trials, num_trials)
-    fn = make_rollout(env, policy, max_steps, render)
     goal = jax.numpy.asarray(goal, jax.numpy.float32)
+    if plants_of is not None:
+        k_reset, k_policy = jax.vmap(split_trial_key, out_axes=1)(keys)
+        goals = jax.numpy.broadcast_to(goal, (num_trials, 3))
+        states = start_states(env, k_reset, positions, yaws, goals, plants_for(plants_of, k_reset))
+        return _from_states(env, policy, states, k_policy, max_steps, render, positions, yaws)
+    fn = make_rollout(env, policy, max_steps, render)
     if render:
         goal = jax.numpy.broadcast_to(goal, (num_trials, 3))
     out = jax.device_get(fn(policy.params, keys, positions, yaws, goal))
     out = {k: np.asarray(v) for k, v in out.items()}
     return trial_metrics(out, env.control_dt, np.asarray(positions), np.asarray(yaws))
+
+
+def _check_trials(env, num_trials: int, max_steps: int, what: str) -> None:
+    if not getattr(env.params, "terminate_on_arrival", False):
+        raise ValueError(f"{what} needs an env with terminate_on_arrival=True (use make_eval_env)")
+    if num_trials <= 0:
+        raise ValueError(f"num_trials={num_trials}: must be a positive integer")
+    if max_steps <= 0:
+        raise ValueError(f"max_steps={max_steps}: must be a positive integer")
+
+
+def run_from_states(env, policy, states, keys, max_steps: int = 500, render: bool = False) -> dict[str, np.ndarray]:
+    """Trials of `policy` from given initial states (an `EnvState` with a leading trial axis, e.g.
+    `reset_states`), one policy key each (N, 2), as one vmapped rollout of `env`; the arrays of
+    `run_trials`, the start poses read from the states."""
+    n = int(np.shape(keys)[0])
+    _check_trials(env, n, max_steps, "run_from_states")
+    return _from_states(env, policy, states, keys, max_steps, render, states.info["position"], states.info["yaw"])
+
+
+def _from_states(env, policy, states, keys, max_steps, render, start_positions, start_yaws):
+    import jax
+    fn = make_rollout(env, policy, max_steps, render, from_states=True)
+    out = jax.device_get(fn(policy.params, keys, states))
+    out = {k: np.asarray(v) for k, v in out.items()}
+    return trial_metrics(out, env.control_dt, np.asarray(start_positions), np.asarray(start_yaws))
+
+
+_STARTS: dict = {}   # (id(env), kind) -> (jit(vmap(env.reset or env.reset_to)), env)
+
+
+def _start_fn(env, kind: str):
+    import jax
+    if (id(env), kind) not in _STARTS:   # compiled once per env (keeping the env alive keeps its id unique)
+        if kind == "reset":
+            fn = lambda k, layout, plant: env.reset(k, layout=layout, plant=plant)  # noqa: E731
+        else:
+            fn = lambda k, p, y, g, plant: env.reset_to(k, p, y, g, plant=plant)  # noqa: E731
+        _STARTS[(id(env), kind)] = (jax.jit(jax.vmap(fn)), env)
+    return _STARTS[(id(env), kind)][0]
+
+
+def reset_states(env, keys, layouts=None, plants=None):
+    """`env.reset(key, layout, plant)` of each key (N, 2) as one jit(vmap): random starts, goals and
+    yaws of the env's reset distribution; `layouts` (a `layouts.Layout` with a leading trial axis,
+    e.g. held-out layouts) for a procedural tank, `plants` (an `envs.physics.Plant` with a leading
+    axis) instead of the env's own draw. Compiled once per env."""
+    return _start_fn(env, "reset")(keys, layouts, plants)
+
+
+def start_states(env, keys, positions, yaws, goals, plants=None):
+    """`env.reset_to(key, position, yaw, goal, plant=plant)` per trial (leading axis N) as one
+    jit(vmap); compiled once per env."""
+    return _start_fn(env, "reset_to")(keys, positions, yaws, goals, plants)
+
+
+def plants_for(params, reset_keys):
+    """The plants an env with `params` draws at `env.reset_to(k, ...)` for each reset key k (N, 2): the
+    domain randomisation's draw from the key folded with 2, as `HUAUVEnv.reset_to` draws it (a test
+    checks the two agree)."""
+    import jax
+    from docrl_jax.envs import randomization
+    return jax.vmap(lambda k: randomization.sample_plant(jax.random.fold_in(k, 2), params))(reset_keys)
 
 
 def trial_metrics(out: dict[str, np.ndarray], dt: float, start_positions, start_yaws) -> dict[str, np.ndarray]:
