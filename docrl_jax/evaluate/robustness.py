@@ -1,0 +1,254 @@
+"""The robustness benchmark (`python -m docrl_jax.robustness`, the command: `robustness_cli`): how
+a policy's success holds up off the paper's nominal trials. Three tests, each counting successes,
+collisions, out-of-bounds and time-outs per scenario and direction (A-W, W-A):
+
+  perturbations     the paper's pairs with the evaluator's very trials (`rollout.trial_key`,
+                    `trial_starts`, `DEFAULT_EVAL_ENV`) in scenarios 1-3, under each perturbation of
+                    `ENVELOPE` at each of its magnitudes; the nominal row (no perturbation) once.
+  random_trips      starts, goals and headings of the env's own reset distribution in scenarios 1-3,
+                    the media forced per direction (A-W: start in air, goal under water; W-A the
+                    reverse); trial i's key depends on (seed, scenario, direction, i) only.
+  held_out_layouts  scenario 0: held-out procedural layout i (`layouts.held_out(i)`, never trained
+                    on) for i < N, one A-W and one W-A trip in each (random start, goal, yaw).
+
+All trials of one (env settings, direction) are one `jit(vmap(scan))` of the evaluator's rollout. A
+perturbation changes the episode's plant only (`dr_*` parameters: the true vehicle, water, wind,
+sensors, delays), which the rollout takes as data (`rollout.run_trials(..., plants_of=...)`): every
+perturbation of a scenario runs in one compiled program, that of a "host" env whose structure admits
+them all (latency queues as long as the longest delay; dropouts and range noise drawn), and its
+trials are, bit for bit, those of an env built with the perturbation's overrides. The trips start
+from `env.reset(key, layout=...)` of the host env with the media forced (`rollout.reset_states`) and
+run in the same program.
+
+`run_benchmark(methods, cfg)` runs it all and returns one row per (method, seed, test, perturbation,
+magnitude, scenario, direction); `robustness_report` writes the files.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from docrl_jax.evaluate import rollout
+from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW
+from docrl_jax.evaluate.robustness_report import NOMINAL, NONE
+from docrl_jax.evaluate.tables import SHORT, summarize
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """One perturbation of the envelope: env parameter `param` fixed at each magnitude, i.e. the
+    range (v, v) (a scale multiplies the nominal value; `nominal` is the unperturbed value)."""
+    name: str
+    title: str
+    param: str
+    unit: str                        # "x": a scale of the nominal value; otherwise the magnitude's unit
+    nominal: float
+    magnitudes: tuple[float, ...]
+    doc: str
+
+    def overrides(self, value: float) -> dict[str, tuple]:
+        v = int(value) if self.unit == "steps" else float(value)
+        return {self.param: (v, v)}
+
+    def label(self, value: float) -> str:
+        if self.unit == "x":
+            return f"x{value:g}"
+        if self.unit == "p":
+            return f"p={value:g}"
+        return f"{value:g} {self.unit[:-1] if self.unit == 'steps' and value == 1 else self.unit}"
+
+
+# The default envelope: name -> env overrides per magnitude (`Perturbation.overrides`: param = (v, v)).
+ENVELOPE = (
+    Perturbation("wind_gusts", "Wind gusts", "dr_wind_scale", "x", 1.0, (1.5, 2.0, 3.0, 4.0),
+                 "the air's Ornstein-Uhlenbeck wind noise (and so its stationary std) x magnitude"),
+    Perturbation("water_current", "Water current", "dr_current_speed", "m/s", 0.0, (0.1, 0.25, 0.5),
+                 "a constant current of this speed, its direction uniform in 3-D, drawn per trial"),
+    Perturbation("motor_lag", "Motor lag", "dr_motor_tau_scale", "x", 1.0, (2.0, 5.0, 10.0),
+                 "rotor thrust time constants x magnitude"),
+    Perturbation("action_latency", "Action latency", "dr_action_latency", "steps", 0, (1, 2),
+                 "the controller acts on the action of this many control steps (0.2 s each) ago"),
+    Perturbation("obs_latency", "Observation latency", "dr_obs_latency", "steps", 0, (1, 2),
+                 "the agent sees the observation of this many control steps ago"),
+    Perturbation("beam_dropout", "Beam dropouts", "dr_beam_dropout", "p", 0.0, (0.05, 0.1, 0.2),
+                 "each beam reads the sensor's maximum range with this probability per step"),
+    Perturbation("range_noise", "Extra range noise", "dr_range_noise_std", "m", 0.0, (0.05, 0.1),
+                 "std of Gaussian range noise added to the evaluation's 0.01 m"),
+    Perturbation("buoyancy", "Buoyancy", "dr_hull_volume_scale", "x", 1.0, (0.0, 4.0),
+                 "displaced volume x magnitude (x0: no buoyancy; nominal 2.5 % of the weight)"),
+    Perturbation("mass", "Mass", "dr_mass_scale", "x", 1.0, (0.8, 1.2), "vehicle mass and inertia x magnitude"),
+    Perturbation("water_drag", "Water drag", "dr_water_drag_scale", "x", 1.0, (0.5, 2.0),
+                 "every water drag coefficient x magnitude"),
+    Perturbation("thrust_water", "Thrust in water", "dr_thrust_water_scale", "x", 1.0, (0.5,),
+                 "rotor thrust limit under water x magnitude"),
+    Perturbation("thrust_air", "Thrust in air", "dr_thrust_air_scale", "x", 1.0, (0.7,),
+                 "rotor thrust limit in air x magnitude"),
+    Perturbation("added_mass", "Added mass", "dr_added_mass_scale", "x", 1.0, (0.5, 2.0),
+                 "added mass and added inertia in water x magnitude"),
+)
+PERTURBATIONS = {p.name: p for p in ENVELOPE}
+TESTS = ("perturbations", "random_trips", "held_out_layouts")
+# (start_water_fraction, goal_water_fraction) of the random and layout trips per direction.
+MEDIA = {"air_to_water": (0.0, 1.0), "water_to_air": (1.0, 0.0)}
+MEDIA_KEYS = ("start_water_fraction", "goal_water_fraction")
+# Trip keys: fold_in(fold_in(fold_in(fold_in(PRNGKey(seed), salt), scenario), direction), trial).
+TRIP_SALT = {"random_trips": 0x7269, "held_out_layouts": 0x6C61}
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One sweep row's env: a perturbation at one magnitude, or the nominal (no perturbation)."""
+    perturbation: str
+    magnitude: str
+    value: float | None
+    overrides: dict = field(default_factory=dict)
+
+
+def sweep_settings(names: Sequence[str], quick: bool = False) -> list[Setting]:
+    """The nominal setting, then every magnitude of each named perturbation (`quick`: its strongest,
+    the one furthest from nominal)."""
+    out = [Setting(NOMINAL, "", None)]
+    for name in names:
+        p = PERTURBATIONS[name]
+        values = (max(p.magnitudes, key=lambda v: abs(v - p.nominal)),) if quick else p.magnitudes
+        out += [Setting(name, p.label(v), float(v), p.overrides(v)) for v in values]
+    return out
+
+
+def host_overrides(base: dict, settings: Sequence[Setting]) -> dict:
+    """The host env's overrides: `base` plus, for every `dr_*` parameter any setting fixes, the range
+    spanning its base value and all of theirs (the host's own draws are never used: every trial gets
+    its plant; the spans only size the latency queues and switch on the noise and dropout draws)."""
+    from docrl_jax.envs.params import EnvParams
+    defaults = EnvParams()
+    host = dict(base)
+    for s in settings:
+        for k, (lo, hi) in s.overrides.items():
+            if not k.startswith("dr_"):
+                raise ValueError(f"{s.perturbation}: {k} is not a dr_* parameter; only the episode's plant is "
+                                 "perturbed here (give such a test a host env of its own)")
+            cur = host.get(k, getattr(defaults, k))
+            host[k] = (min(cur[0], lo), max(cur[1], hi))
+    return host
+
+
+# ------------------------------------------------------------------ the trials
+def perturbation_trials(host, policy, scenario: int, direction: str, plants_of, num_trials: int, max_steps: int,
+                        seed: int) -> dict:
+    """The evaluator's trials of (scenario, direction) with the plants of `plants_of` (EnvParams)."""
+    import docrl_jax.envs as envs
+    start, goal = envs.eval_pair(scenario, direction)
+    return rollout.run_trials(host, policy, start, goal, rollout.trial_key(seed, scenario, direction), num_trials,
+                              max_steps, NOMINAL_YAW[direction], plants_of=plants_of)
+
+
+def trip_keys(seed: int, test: str, scenario: int, direction: str, num_trials: int):
+    """(N, 2) keys of the random or layout trips: trial i's depends on (seed, test, scenario, direction,
+    i) only, not on N or the method."""
+    import jax
+    import jax.numpy as jnp
+    base = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), TRIP_SALT[test]), scenario)
+    base = jax.random.fold_in(base, DIRECTIONS.index(direction))
+    return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_trials))
+
+
+_LAYOUTS: dict = {}
+
+
+def held_out_layouts(params, num: int):
+    """Held-out layouts 0 .. num-1 of `params`' layout ranges, stacked (a leading axis); cached."""
+    key = (params, int(num))
+    if key not in _LAYOUTS:
+        import jax
+        import jax.numpy as jnp
+        from docrl_jax.envs import layouts
+        _LAYOUTS[key] = jax.jit(jax.vmap(lambda i: layouts.held_out(i, params)))(jnp.arange(num))
+    return _LAYOUTS[key]
+
+
+def trip_trials(host, sampler, policy, keys, nominal_params, max_steps: int, layouts=None) -> dict:
+    """Trips from `sampler.reset(key, layout)` (the host's env with the media forced), the nominal plant,
+    run by the host's rollout."""
+    import dataclasses
+
+    import jax
+    media = {k: getattr(host.params, k) for k in MEDIA_KEYS}
+    if dataclasses.replace(sampler.params, **media) != host.params:   # its states would not be the host's
+        raise ValueError("trip_trials: the sampler env differs from the host env in more than the media")
+    k_reset, k_policy = jax.vmap(rollout.split_trial_key, out_axes=1)(keys)
+    states = rollout.reset_states(sampler, k_reset, layouts, rollout.plants_for(nominal_params, k_reset))
+    return rollout.run_from_states(host, policy, states, k_policy, max_steps)
+
+
+@dataclass
+class Method:
+    """A policy to benchmark: a run group (its run directories' seeds) or the BBA."""
+    label: str
+    runs: list[str] | None            # None: the BBA
+    sources: list[tuple[str | None, int | None]]   # (run dir, seed index within it) per seed
+    seed_indices: list[int | None]    # each seed's number in the tables
+
+
+def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[dict]:
+    """Every test of `cfg` for every seed of every method; one row per (method, seed, test,
+    perturbation, magnitude, scenario, direction): `summarize`'s statistics and the row's keys.
+
+    `cfg`: tests, scenarios, directions, settings (`sweep_settings`), env (overrides under every
+    test), trials, layouts, max_steps, seed, which and bba_depth_phase (how the policies load).
+    `report(line)` gets a line per row."""
+    from docrl_jax.evaluate import video
+    base, steps, n = cfg["env"], cfg["max_steps"], cfg["trials"]
+    settings = cfg["settings"]
+    host_kw = host_overrides(base, settings)
+    rows = []
+
+    def add(method, seed_index, test, setting, scenario, direction, trials, t0):
+        row = {"method": method.label, "seed_index": seed_index, "test": test, "perturbation": setting.perturbation,
+               "magnitude": setting.magnitude, "value": setting.value,
+               "parameter": PERTURBATIONS[setting.perturbation].param if setting.perturbation in PERTURBATIONS
+               else "", "scenario": scenario, "direction": direction, **summarize(trials),
+               "seconds": round(time.time() - t0, 2)}
+        rows.append(row)
+        what = f"{setting.perturbation} {setting.magnitude}".strip() if test == "perturbations" else test
+        tag = "" if seed_index is None else f" seed {seed_index}"
+        report(f"{method.label}{tag} | {what} | scenario {scenario} {SHORT[direction]}: {row['successes']}/"
+               f"{row['trials']} success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
+               f"{row['timeouts']} time-outs ({row['seconds']:.1f} s)")
+
+    trips = Setting(NONE, "", None)
+    for method in methods:
+        for seed_index, (run, run_seed) in zip(method.seed_indices, method.sources):
+            first_env = rollout.make_eval_env(cfg["scenarios"][0], steps, **host_kw)
+            policy, _ = video.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"])
+            if policy.source:
+                report(f"{method.label}: {Path(run).name}: {policy.source}")
+            for scenario in cfg["scenarios"] if "perturbations" in cfg["tests"] else ():
+                host = rollout.make_eval_env(scenario, steps, **host_kw)
+                for setting in settings:
+                    plants_of = rollout.eval_params(scenario, steps, **{**base, **setting.overrides})
+                    for direction in cfg["directions"]:
+                        t0 = time.time()
+                        trials = perturbation_trials(host, policy, scenario, direction, plants_of, n, steps,
+                                                     cfg["seed"])
+                        add(method, seed_index, "perturbations", setting, scenario, direction, trials, t0)
+            for test in ("random_trips", "held_out_layouts"):
+                if test not in cfg["tests"]:
+                    continue
+                scenarios = cfg["scenarios"] if test == "random_trips" else [0]
+                count = n if test == "random_trips" else cfg["layouts"]
+                for scenario in scenarios:
+                    host = rollout.make_eval_env(scenario, steps, **host_kw)
+                    nominal = rollout.eval_params(scenario, steps, **base)
+                    stack = held_out_layouts(host.params, count) if scenario == 0 else None
+                    for direction in cfg["directions"]:
+                        t0 = time.time()
+                        start_w, goal_w = MEDIA[direction]
+                        sampler = rollout.make_eval_env(scenario, steps, **host_kw, start_water_fraction=start_w,
+                                                        goal_water_fraction=goal_w)
+                        keys = trip_keys(cfg["seed"], test, scenario, direction, count)
+                        trials = trip_trials(host, sampler, policy, keys, nominal, steps, stack)
+                        add(method, seed_index, test, trips, scenario, direction, trials, t0)
+    return rows

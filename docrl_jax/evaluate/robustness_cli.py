@@ -1,0 +1,270 @@
+"""`python -m docrl_jax.robustness`: the robustness benchmark (docrl_jax.evaluate.robustness) of one
+or several policies side by side, and its files (docrl_jax.evaluate.robustness_report).
+
+    python -m docrl_jax.robustness --run runs/d --out robustness/d
+    python -m docrl_jax.robustness --run runs/d0 runs/d1 runs/d2 --run runs/s --policy bba --out robustness/all
+    python -m docrl_jax.robustness --policy bba --quick --perturbations wind_gusts,motor_lag --out robustness/bba
+    python -m docrl_jax.robustness --list
+
+A method is each `--run` (its run directories are the method's seeds, as for `python -m
+docrl_jax.evaluate`; `--seed-index`, `--which` as there) and `--policy bba`; `--label` names them,
+once per method in that order. Where a method has several seeds, robustness.md and robustness.png
+show the median over seeds. Outputs under `--out DIR` (its parent must exist): robustness.csv,
+robustness.json, robustness.md, robustness.png. Bad input is one line and exit status 2, before
+anything is compiled.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Sequence
+
+from docrl_jax.errors import RunDirError, os_error_line
+from docrl_jax.evaluate import cli, robustness, rollout
+from docrl_jax.evaluate import robustness_report as report_files
+from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
+from docrl_jax.evaluate.robustness import ENVELOPE, MEDIA_KEYS, PERTURBATIONS, TESTS, Method
+
+TEST_ALIASES = {"perturbations": "perturbations", "sweeps": "perturbations", "random_trips": "random_trips",
+                "random": "random_trips", "held_out_layouts": "held_out_layouts", "layouts": "held_out_layouts"}
+QUICK = {"trials": 10, "layouts": 10}   # --quick: these counts and each perturbation's strongest magnitude
+
+
+UsageError = cli.UsageError
+
+
+def parse_tests(text: str) -> list[str]:
+    vals = [t.strip().lower() for t in text.split(",") if t.strip()]
+    bad = [v for v in vals if v not in TEST_ALIASES]
+    if not vals or bad:
+        raise UsageError(f"--tests {text!r}: valid tests are {', '.join(TESTS)} (comma-separated; short: "
+                         "perturbations, random, layouts)")
+    return [t for t in TESTS if t in {TEST_ALIASES[v] for v in vals}]
+
+
+def parse_perturbations(text: str) -> list[str]:
+    text = text.strip().lower()
+    if text == "all":
+        return list(PERTURBATIONS)
+    if text == "none":
+        return []
+    vals = [t.strip() for t in text.split(",") if t.strip()]
+    bad = [v for v in vals if v not in PERTURBATIONS]
+    if not vals or bad:
+        raise UsageError(f"--perturbations {text!r}: valid names are {', '.join(PERTURBATIONS)} (comma-separated), "
+                         "all or none")
+    return list(dict.fromkeys(vals))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from docrl_jax.policy import CHECKPOINT_POLICIES
+    p = argparse.ArgumentParser(prog="python -m docrl_jax.robustness", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--run", metavar="RUN_DIR", nargs="+", action="append",
+                   help="a trainer run directory, or several of one config (separate launches: the method's seeds); "
+                        "give --run again for another method beside it")
+    p.add_argument("--policy", metavar="NAME", help="a built-in policy beside the runs: bba")
+    p.add_argument("--label", action="append", metavar="NAME",
+                   help="a method's name in the tables, once per method in order (each --run, then --policy)")
+    p.add_argument("--seed-index", default="all",
+                   help="seed(s) of each --run, comma-separated, or 'all' (default: every seed the run trained)")
+    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
+                   help="with --run: the final policy (default) or each seed's best evaluated one")
+    p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
+    p.add_argument("--tests", default=",".join(TESTS), help=f"comma-separated: {', '.join(TESTS)} (default all)")
+    p.add_argument("--perturbations", default="all",
+                   help=f"comma-separated names of the envelope ({', '.join(PERTURBATIONS)}), all (default) or none")
+    p.add_argument("--scenarios", default="1,2,3",
+                   help="scenarios of the perturbations and random trips (default 1,2,3)")
+    p.add_argument("--directions", default="air_to_water,water_to_air",
+                   help="comma-separated: air_to_water (A-W), water_to_air (W-A) (default both)")
+    p.add_argument("--trials", type=int, default=None,
+                   help="trials per scenario, direction and setting of the perturbations and random trips "
+                        "(default 100)")
+    p.add_argument("--layouts", type=int, default=None, help="held-out layouts, one trip each way (default 1000)")
+    p.add_argument("--quick", action="store_true",
+                   help=f"a small sweep: {QUICK['trials']} trials, {QUICK['layouts']} layouts and each perturbation's "
+                        "strongest magnitude (--trials and --layouts still win)")
+    p.add_argument("--max-steps", type=int, default=500, help="step limit of a trial (default 500, the paper's)")
+    p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0, the evaluator's)")
+    p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
+                   help="env parameter override under every test (repeatable), as for python -m docrl_jax.evaluate")
+    p.add_argument("--out", metavar="DIR",
+                   help="output folder: robustness.csv, .json, .md, .png (its parent must exist)")
+    p.add_argument("--list", action="store_true", help="print the perturbation envelope and exit")
+    return p
+
+
+def validate_args(args: argparse.Namespace) -> dict[str, Any]:
+    """Checks the command line before anything is compiled; raises UsageError naming the valid choices."""
+    from docrl_jax.baselines.bba import DEPTH_PHASES
+    from docrl_jax.envs.layouts import HELD_OUT_IDS
+    if not args.run and args.policy is None:
+        raise UsageError("nothing to benchmark: give --run RUN_DIR (repeatable) and/or --policy bba")
+    if args.policy is not None and args.policy.lower() not in cli.POLICIES:
+        raise UsageError(f"--policy {args.policy!r}: unknown policy; valid choices: {', '.join(cli.POLICIES)} "
+                         "(or --run RUN_DIR for a trained agent)")
+    if args.bba_depth_phase not in DEPTH_PHASES:
+        raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
+    trials = args.trials if args.trials is not None else (QUICK["trials"] if args.quick else 100)
+    num_layouts = args.layouts if args.layouts is not None else (QUICK["layouts"] if args.quick else 1000)
+    for flag, value in (("--trials", trials), ("--max-steps", args.max_steps)):
+        if value <= 0:
+            raise UsageError(f"{flag} {value}: must be a positive integer")
+    if not 0 < num_layouts <= HELD_OUT_IDS:
+        raise UsageError(f"--layouts {num_layouts}: must be in 1..{HELD_OUT_IDS} (the held-out layout ids)")
+    tests = parse_tests(args.tests)
+    scenarios = cli.parse_scenarios(args.scenarios)
+    cfg = {"tests": tests, "scenarios": scenarios, "directions": cli.parse_directions(args.directions),
+           "trials": trials, "layouts": num_layouts, "seed_indices": cli.parse_seed_indices(args.seed_index),
+           "perturbations": parse_perturbations(args.perturbations), "max_steps": args.max_steps, "seed": args.seed,
+           "which": args.which, "bba_depth_phase": args.bba_depth_phase}
+    cfg["env"] = cli.parse_env_overrides(args.env, [*scenarios, 0] if "held_out_layouts" in tests else scenarios)
+    for key in MEDIA_KEYS:
+        if key in cfg["env"]:
+            raise UsageError(f"--env {key}: set by the benchmark (random and layout trips force the media of each "
+                             "direction)")
+    cfg["settings"] = robustness.sweep_settings(cfg["perturbations"], args.quick)
+    _check_settings(cfg, args.max_steps)
+    cfg["methods"] = methods_of(args, cfg["seed_indices"])
+    cfg["out"] = output_dir(args.out)
+    return cfg
+
+
+def _check_settings(cfg: dict, max_steps: int) -> None:
+    """Every env the run builds is valid for every scenario it runs in (e.g. --env against the envelope)."""
+    host_kw = robustness.host_overrides(cfg["env"], cfg["settings"])
+    scenarios = [*cfg["scenarios"], 0] if "held_out_layouts" in cfg["tests"] else cfg["scenarios"]
+    for scenario in scenarios:
+        for s in cfg["settings"]:
+            for kw in ({**cfg["env"], **s.overrides}, host_kw):
+                try:
+                    rollout.eval_params(scenario, max_steps, **kw)
+                except (ValueError, TypeError) as e:
+                    raise UsageError(f"{s.perturbation} {s.magnitude} with --env in scenario {scenario}: {e}") from None
+
+
+def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
+    """The methods of the command line in order (each --run group, then --policy), labelled."""
+    from docrl_jax.baselines import bba
+    methods = []
+    for group in args.run or []:
+        for run in group:
+            cli.check_run_dir(run)
+            bad = [s for s in seed_indices or [] if s >= cli.run_num_seeds(run)]
+            if bad:
+                raise UsageError(f"--seed-index {bad[0]}: {run} trained {cli.run_num_seeds(run)} seed(s) "
+                                 f"(valid 0..{cli.run_num_seeds(run) - 1})")
+        sources = [(run, s) for run in group
+                   for s in (seed_indices if seed_indices is not None else range(cli.run_num_seeds(run)))]
+        numbers = [s for _, s in sources] if len(group) == 1 else list(range(len(sources)))
+        names = {cli.config_name(run) for run in group}
+        if len(group) > 1 and len(names) != 1:
+            name = None   # needs --label
+        else:
+            name = names.pop() if len(group) > 1 else Path(group[0]).resolve().name
+        if name is not None and args.which == "best":
+            name += " (best)"
+        methods.append(Method(name, list(group), sources, numbers))
+    if args.policy is not None:
+        methods.append(Method(bba.label(args.bba_depth_phase), None, [(None, None)], [None]))
+    labels = args.label or []
+    if labels and len(labels) != len(methods):
+        raise UsageError(f"--label given {len(labels)} time(s) for {len(methods)} method(s): give one --label per "
+                         "method, in order (each --run, then --policy), or none")
+    for m, label in zip(methods, labels):
+        m.label = label
+    for m in methods:
+        if m.label is None:
+            raise UsageError(f"--run {' '.join(m.runs)}: the run directories hold different configs "
+                             f"({', '.join(sorted({cli.config_name(r) for r in m.runs}))}); benchmark one config "
+                             "per --run, or name the method with --label")
+    labels = [m.label for m in methods]
+    if len(set(labels)) != len(labels):
+        raise UsageError(f"methods share a label ({', '.join(labels)}): give each method its own --label")
+    return methods
+
+
+def output_dir(out: str | None) -> Path:
+    """--out: a folder whose parent exists (created if it does not exist itself)."""
+    if out is None:
+        raise UsageError("--out DIR: where robustness.csv, .json, .md and .png go (its parent folder must exist)")
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"--out {out}: exists and is not a folder")
+    parent = path.resolve().parent
+    if parent.exists() and not parent.is_dir():
+        raise UsageError(f"--out {out}: {parent} is not a folder")
+    if not parent.is_dir():
+        raise UsageError(f"--out {out}: the parent folder {parent} does not exist")
+    return path
+
+
+def envelope_text() -> str:
+    lines = ["The perturbation envelope (env overrides per magnitude; the nominal row has none):"]
+    for p in ENVELOPE:
+        mags = ", ".join(f"{p.label(v)}: {p.param}={p.overrides(v)[p.param]}" for v in p.magnitudes)
+        lines.append(f"  {p.name:15s} {p.title}: {p.doc}\n  {'':15s} {mags}")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.list:
+        print(envelope_text())
+        return 0
+    try:
+        cfg = validate_args(args)
+    except (UsageError, RunDirError) as e:
+        parser.error(str(e))  # exits with status 2 and the usage line
+    try:
+        cfg["out"].mkdir(exist_ok=True)
+        return _benchmark(args, cfg, argv)
+    except RunDirError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # an output folder that cannot be written
+        print(f"error: {os_error_line(e)}", file=sys.stderr)
+        return 2
+
+
+def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) -> dict:
+    """The run's settings: command, versions, date, device, what ran and how many trials."""
+    import jax
+    return {
+        "command": " ".join(["python -m docrl_jax.robustness", *(argv if argv is not None else sys.argv[1:])]),
+        "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": report_files.versions(),
+        "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()],
+        "methods": [{"label": m.label, "runs": m.runs, "seeds": {str(i): {"run": r, "seed_index": s}
+                                                                for i, (r, s) in zip(m.seed_indices, m.sources)}}
+                    for m in cfg["methods"]],
+        "which": args.which if args.run else None, "bba_depth_phase": args.bba_depth_phase if args.policy else None,
+        "tests": cfg["tests"], "scenarios": cfg["scenarios"], "directions": cfg["directions"],
+        "trials": cfg["trials"], "layouts": cfg["layouts"], "max_steps": args.max_steps, "seed": args.seed,
+        "quick": args.quick, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
+        "host_env_overrides": robustness.host_overrides(cfg["env"], cfg["settings"]),
+        "perturbations": {name: {"parameter": PERTURBATIONS[name].param, "doc": PERTURBATIONS[name].doc,
+                                 "magnitudes": {s.magnitude: s.overrides for s in cfg["settings"]
+                                                if s.perturbation == name}}
+                          for name in cfg["perturbations"]} if "perturbations" in cfg["tests"] else {},
+        "wall_time_s": round(wall_time_s, 2),
+    }
+
+
+def _benchmark(args, cfg: dict, argv: Sequence[str] | None) -> int:
+    t0 = time.time()
+    rows = robustness.run_benchmark(cfg["methods"], cfg, report=lambda line: print(line, flush=True))
+    meta = metadata(args, cfg, argv, time.time() - t0)
+    paths = report_files.write_outputs(cfg["out"], rows, meta, PERTURBATIONS)
+    print(report_files.markdown(rows, meta, PERTURBATIONS))
+    print(f"wrote {', '.join(str(p) for p in paths)} ({meta['wall_time_s']} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

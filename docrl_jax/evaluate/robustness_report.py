@@ -1,0 +1,226 @@
+"""The robustness benchmark's outputs (docrl_jax.evaluate.robustness): robustness.csv (one row per
+method, seed, test, perturbation, magnitude, scenario and direction: the outcome counts and the
+success rate), robustness.json (those rows, the rows over seeds and the run's settings: command,
+versions, date), robustness.md (success % per test and magnitude, A-W / W-A) and robustness.png
+(success against magnitude per perturbation, a bar panel for the random trips and held-out layouts).
+
+Where a method has several seeds the table and figure show, for each cell, the median over seeds of
+the seed's success rate averaged over the scenarios (every scenario runs the same number of trials).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import platform
+import statistics
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from docrl_jax.evaluate.tables import SHORT
+
+CSV_FIELDS = ("method", "seed_index", "test", "perturbation", "magnitude", "value", "parameter", "scenario",
+              "direction", "trials", "successes", "collisions", "out_of_bounds", "timeouts", "diverged",
+              "success_rate", "final_distance_mean", "path_length_all_mean", "time_mean", "seconds")
+GROUP = ("method", "test", "perturbation", "magnitude", "scenario", "direction")
+TEST_TITLES = {"random_trips": "Random trips", "held_out_layouts": "Held-out layouts (scenario 0)"}
+BAR_LABELS = {"random_trips": "random", "held_out_layouts": "layouts"}
+PACKAGES = ("docrl_jax", "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy", "matplotlib")
+NOMINAL = "nominal"   # the perturbation of the sweep's row without one
+NONE = "none"         # the perturbation of the random and layout trips' rows
+
+
+def over_seeds(rows: Sequence[dict]) -> list[dict]:
+    """One row per (method, test, perturbation, magnitude, scenario, direction): the success rate's
+    median, min and max over seeds, each seed's successes, and the median outcome counts."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
+    out = []
+    for key, rs in groups.items():
+        rates = [r["success_rate"] for r in rs]
+        agg = dict(zip(GROUP, key))
+        agg.update(value=rs[0]["value"], parameter=rs[0]["parameter"], trials=rs[0]["trials"],
+                   seeds=[r["seed_index"] for r in rs], successes_per_seed=[r["successes"] for r in rs],
+                   success_rate_median=statistics.median(rates), success_rate_min=min(rates),
+                   success_rate_max=max(rates))
+        for k in ("collisions", "out_of_bounds", "timeouts"):
+            agg[f"{k}_median"] = statistics.median(r[k] for r in rs)
+        out.append(agg)
+    return out
+
+
+def cell_rates(rows: Sequence[dict], per_scenario: bool = False) -> dict[tuple, float]:
+    """(method, test, perturbation, magnitude, direction[, scenario]) -> success rate: each seed's
+    rate averaged over the scenarios (or one scenario's), then the median over seeds."""
+    per_seed: dict[tuple, dict] = {}
+    for r in rows:
+        key = (r["method"], r["test"], r["perturbation"], r["magnitude"], r["direction"])
+        if per_scenario:
+            key += (r["scenario"],)
+        per_seed.setdefault(key, {}).setdefault(r["seed_index"], []).append(r["success_rate"])
+    return {k: statistics.median(float(np.mean(v)) for v in seeds.values()) for k, seeds in per_seed.items()}
+
+
+def _lines(rows: Sequence[dict]) -> list[tuple[str, str]]:
+    """(test, perturbation) in the order the rows first name them."""
+    return list(dict.fromkeys((r["test"], r["perturbation"]) for r in rows))
+
+
+def _magnitudes(rows: Sequence[dict], test: str, perturbation: str) -> list[tuple[str, float | None]]:
+    return list(dict.fromkeys((r["magnitude"], r["value"]) for r in rows
+                              if r["test"] == test and r["perturbation"] == perturbation))
+
+
+def _title(test: str, perturbation: str, envelope: dict) -> str:
+    if test != "perturbations":
+        return TEST_TITLES[test]
+    if perturbation == NOMINAL:
+        return "Nominal (the paper's pairs)"
+    return f"{envelope[perturbation].title} (`{envelope[perturbation].param}`)"
+
+
+def _pct(rate: float | None) -> str:
+    return "–" if rate is None or not math.isfinite(rate) else f"{100 * rate:.0f}"
+
+
+def markdown(rows: Sequence[dict], meta: dict, envelope: dict) -> str:
+    """The summary table (success %, A-W / W-A, averaged over scenarios, median over seeds) and one
+    per scenario; `envelope`: perturbation name -> its `robustness.Perturbation`."""
+    rates, by_scen = cell_rates(rows), cell_rates(rows, per_scenario=True)
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    seeds = {m: len({r["seed_index"] for r in rows if r["method"] == m}) for m in methods}
+    dirs = list(dict.fromkeys(r["direction"] for r in rows))
+    lines_ = _lines(rows)
+    width = max([len(_magnitudes(rows, t, p)) for t, p in lines_] or [1])
+    scen = sorted({r["scenario"] for r in rows if r["test"] != "held_out_layouts"})
+    out = ["# Robustness benchmark\n",
+           f"Success % ({' / '.join(SHORT[d] for d in dirs)}), averaged over scenarios {', '.join(map(str, scen))} "
+           f"(held-out layouts: scenario 0); {meta['trials']} trials per scenario, direction and magnitude, "
+           f"{meta['layouts']} held-out layouts; median over seeds where a method has several. Counts of "
+           "collisions, out-of-bounds and time-outs: robustness.csv.\n",
+           "| Test | Method | " + " | ".join(f"Magnitude {i + 1}" if width > 1 else "Success"
+                                              for i in range(width)) + " |",
+           "|---|---|" + "---|" * width]
+    for test, pert in lines_:
+        mags = _magnitudes(rows, test, pert)
+        for m in methods:
+            cells = []
+            for mag, _ in mags:
+                rs = " / ".join(_pct(rates.get((m, test, pert, mag, d))) for d in dirs)
+                cells.append(f"{mag}: {rs}" if mag else rs)
+            name = m + (f" ({seeds[m]} seeds)" if seeds[m] > 1 else "")
+            cells += [""] * (width - len(cells))
+            out.append(f"| {_title(test, pert, envelope)} | {name} | " + " | ".join(cells) + " |")
+    cols = list(dict.fromkeys((r["scenario"], r["direction"]) for r in sorted(rows, key=lambda r: r["scenario"])))
+    out += ["", "## Per scenario\n", "Success % per scenario (S0: the held-out layouts).\n",
+            "| Test | Magnitude | Method | " + " | ".join(f"S{s} {SHORT[d]}" for s, d in cols) + " |",
+            "|---|---|---|" + "---|" * len(cols)]
+    for test, pert in lines_:
+        for mag, _ in _magnitudes(rows, test, pert):
+            for m in methods:
+                cells = [_pct(by_scen.get((m, test, pert, mag, d, s))) if (m, test, pert, mag, d, s) in by_scen
+                         else "" for s, d in cols]
+                out.append(f"| {_title(test, pert, envelope)} | {mag or '–'} | {m} | " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
+def plot(rows: Sequence[dict], path: Path, envelope: dict, title: str = "") -> Path:
+    """Success % against magnitude, one panel per perturbation (the nominal point at the nominal
+    value), a line per method and direction (averaged over scenarios, median over seeds); a bar panel
+    for the random trips and held-out layouts."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rates = cell_rates(rows)
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    dirs = list(dict.fromkeys(r["direction"] for r in rows))
+    perts = [p for t, p in _lines(rows) if t == "perturbations" and p != NOMINAL]
+    trips = [t for t in ("random_trips", "held_out_layouts") if any(r["test"] == t for r in rows)]
+    has_nominal = any(r["test"] == "perturbations" and r["perturbation"] == NOMINAL for r in rows)
+    panels = perts + (["trips"] if trips else []) or ([NOMINAL] if has_nominal else [])
+    ncols = min(4, max(1, len(panels)))
+    nrows = math.ceil(len(panels) / ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.2 * nrows), squeeze=False)
+    colours = {m: plt.get_cmap("tab10")(i % 10) for i, m in enumerate(methods)}
+    styles = {"air_to_water": ("-", "o"), "water_to_air": ("--", "s")}
+    for ax, panel in zip(axes.ravel(), panels):
+        if panel == "trips":
+            labels = [f"{BAR_LABELS[t]}\n{SHORT[d]}" for t in trips for d in dirs]
+            width = 0.8 / len(methods)
+            for i, m in enumerate(methods):
+                vals = [100 * rates.get((m, t, NONE, "", d), math.nan) for t in trips for d in dirs]
+                ax.bar(np.arange(len(labels)) + (i - (len(methods) - 1) / 2) * width, vals, width,
+                       color=colours[m], label=m)
+            ax.set_xticks(np.arange(len(labels)), labels, fontsize=8)
+            ax.set_title("Random trips and held-out layouts", fontsize=10)
+        else:
+            p = envelope.get(panel)
+            points = [("", p.nominal if p else 0.0)] if has_nominal else []
+            points += [(mag, v) for mag, v in _magnitudes(rows, "perturbations", panel)] if p else []
+            points.sort(key=lambda mv: mv[1])
+            for m in methods:
+                for d in dirs:
+                    ys = [100 * rates.get((m, "perturbations", NOMINAL if not mag else panel, mag, d), math.nan)
+                          for mag, _ in points]
+                    ls, mk = styles[d]
+                    ax.plot([v for _, v in points], ys, ls, marker=mk, color=colours[m], label=f"{m} {SHORT[d]}")
+            ticks = [(p.label(v) if p else "nominal") + (" (nom.)" if not mag and p else "") for mag, v in points]
+            ax.set_xticks([v for _, v in points], ticks, fontsize=8)
+            ax.set_title(p.title if p else "Nominal", fontsize=10)
+        ax.set_ylim(-3, 103)
+        ax.set_ylabel("success %", fontsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes.ravel()[len(panels):]:
+        ax.axis("off")
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    if panels and panels[0] == "trips":
+        handles, labels = handles[:len(methods)], labels[:len(methods)]
+    fig.legend(handles, labels, loc="lower center", ncol=min(6, max(1, len(labels))), fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    fig.tight_layout(rect=(0, 0.06 if nrows > 1 else 0.12, 1, 0.96 if title else 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def versions() -> dict[str, str | None]:
+    from importlib import metadata
+    out: dict[str, str | None] = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def _clean(x):
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, float):
+        return round(x, 4)
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
+
+
+def write_outputs(out_dir: Path, rows: list[dict], meta: dict, envelope: dict) -> list[Path]:
+    """robustness.csv, robustness.json, robustness.md and robustness.png in `out_dir`."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / f"robustness.{ext}" for ext in ("csv", "json", "md", "png")]
+    with open(paths[0], "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(_clean(r) for r in rows)
+    paths[1].write_text(json.dumps(_clean({"meta": meta, "rows": rows, "over_seeds": over_seeds(rows)}), indent=1))
+    paths[2].write_text(markdown(rows, meta, envelope))
+    labels = ", ".join(dict.fromkeys(r["method"] for r in rows))
+    plot(rows, paths[3], envelope, title=f"Robustness: {labels}")
+    return paths
