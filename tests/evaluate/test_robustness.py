@@ -159,3 +159,33 @@ def test_command_name_and_out_under_a_file(tmp_path):
     assert proc.stderr.strip().splitlines()[-1].endswith("is not a folder"), proc.stderr
     listed = subprocess.run([sys.executable, "-m", "docrl_jax.robustness", "--list"], capture_output=True, text=True)
     assert listed.returncode == 0 and "wind_gusts" in listed.stdout and "dr_current_speed=(0.5, 0.5)" in listed.stdout
+
+
+def test_methods_side_by_side_and_the_median_over_seeds(tmp_path):
+    """Each --run is a method (its directories its seeds), then --policy; the table and figure show
+    the median over seeds of the rate averaged over scenarios."""
+    args = robustness_cli.build_parser().parse_args(
+        ["--run", str(TRAINED / "td3_lstm"), str(TRAINED / "td3_lstm"), "--run", str(TRAINED / "sac_lstm"),
+         "--policy", "bba", "--label", "D", "--label", "S", "--label", "B", "--out", str(tmp_path)])
+    methods = robustness_cli.validate_args(args)["methods"]
+    assert [(m.label, m.seed_indices) for m in methods] == [("D", [0, 1]), ("S", [0]), ("B", [None])]
+    assert [s for _, s in methods[0].sources] == [0, 0]
+
+    from docrl_jax.evaluate import robustness_report as report
+    rows = []
+    for seed, rates in ((0, (1.0, 0.5)), (1, (0.5, 0.5)), (2, (0.0, 0.0))):   # scenario means 0.75, 0.5, 0
+        for scenario, rate in zip((1, 2), rates):
+            for method, r in (("D", rate), ("B", 1.0)):
+                rows.append({"method": method, "seed_index": seed if method == "D" else None, "test": "perturbations",
+                             "perturbation": "wind_gusts", "magnitude": "x2", "value": 2.0,
+                             "parameter": "dr_wind_scale", "scenario": scenario, "direction": "air_to_water",
+                             "trials": 4, "successes": int(4 * r), "success_rate": r, "collisions": 4 - int(4 * r),
+                             "out_of_bounds": 0, "timeouts": 0})
+    assert report.cell_rates(rows)[("D", "perturbations", "wind_gusts", "x2", "air_to_water")] == 0.5
+    per_scenario = report.cell_rates(rows, per_scenario=True)
+    assert per_scenario[("D", "perturbations", "wind_gusts", "x2", "air_to_water", 1)] == 0.5
+    agg = [a for a in report.over_seeds(rows) if a["method"] == "D" and a["scenario"] == 1][0]
+    assert agg["successes_per_seed"] == [4, 2, 0] and agg["success_rate_median"] == 0.5 and agg["seeds"] == [0, 1, 2]
+    md = report.markdown(rows, {"trials": 4, "layouts": 0}, robustness.PERTURBATIONS)
+    assert "| Wind gusts (`dr_wind_scale`) | D (3 seeds) | x2: 50 |" in md and "| B | x2: 100 |" in md
+    assert report.plot(rows, tmp_path / "r.png", robustness.PERTURBATIONS).stat().st_size > 0
