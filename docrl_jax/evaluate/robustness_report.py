@@ -97,11 +97,14 @@ def markdown(rows: Sequence[dict], meta: dict, envelope: dict) -> str:
     lines_ = _lines(rows)
     width = max([len(_magnitudes(rows, t, p)) for t, p in lines_] or [1])
     scen = sorted({r["scenario"] for r in rows if r["test"] != "held_out_layouts"})
+    where = (f"averaged over scenarios {', '.join(map(str, scen))}" if len(scen) > 1
+             else f"in scenario {scen[0]}" if scen else "")
+    layouts = f"held-out layouts: scenario 0, {meta['layouts']} layouts" if any(
+        r["test"] == "held_out_layouts" for r in rows) else ""
     out = ["# Robustness benchmark\n",
-           f"Success % ({' / '.join(SHORT[d] for d in dirs)}), averaged over scenarios {', '.join(map(str, scen))} "
-           f"(held-out layouts: scenario 0); {meta['trials']} trials per scenario, direction and magnitude, "
-           f"{meta['layouts']} held-out layouts; median over seeds where a method has several. Counts of "
-           "collisions, out-of-bounds and time-outs: robustness.csv.\n",
+           f"Success % ({' / '.join(SHORT[d] for d in dirs)}) {where}{f' ({layouts})' if layouts else ''}; "
+           f"{meta['trials']} trials per scenario, direction and magnitude; median over seeds where a method has "
+           "several. Counts of collisions, out-of-bounds and time-outs: robustness.csv.\n",
            "| Test | Method | " + " | ".join(f"Magnitude {i + 1}" if width > 1 else "Success"
                                               for i in range(width)) + " |",
            "|---|---|" + "---|" * width]
