@@ -2,6 +2,7 @@
 
     python benchmarks/env_throughput.py                       # scenario 2, 1,024 ... 65,536 envs
     python benchmarks/env_throughput.py --num-envs 4096 --repeats 3 --out /tmp/res
+    python benchmarks/env_throughput.py --scenarios 2 0 --env dr_wind_scale=0.5,3 --num-envs 4096   # procedural, randomised
 
 Each timed call is one jitted `lax.scan` of `--steps` control steps over `vmap`ped envs (random
 actions drawn inside the program, sensors on). Variants: `autoreset` (the training setting: every
@@ -27,8 +28,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import run_meta, write_results  # noqa: E402
 
 
-def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str, unroll: int | None = None) -> dict:
-    env = envs.make(scenario, auto_reset=(variant == "autoreset"), substep_unroll=unroll)
+def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str, unroll: int | None = None,
+            overrides: dict | None = None) -> dict:
+    env = envs.make(scenario, auto_reset=(variant == "autoreset"), substep_unroll=unroll, **(overrides or {}))
     reset = jax.jit(jax.vmap(env.reset))
 
     def rollout(state, key):
@@ -54,7 +56,7 @@ def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str
         times.append(time.perf_counter() - t0)
     med = statistics.median(times)
     sps = num_envs * steps / med
-    return {"scenario": scenario, "variant": variant, "substep_unroll": env._unroll, "num_envs": num_envs, "steps_per_call": steps,
+    return {"scenario": scenario, "env": overrides or {}, "variant": variant, "substep_unroll": env._unroll, "num_envs": num_envs, "steps_per_call": steps,
             "repeats": repeats, "compile_s": round(compile_s, 2), "call_s_median": round(med, 5),
             "call_s_all": [round(t, 5) for t in times], "control_steps_per_s": round(sps),
             "sim_seconds_per_s": round(sps * env.control_dt),
@@ -63,7 +65,10 @@ def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenario", type=int, default=2, choices=(1, 2, 3))
+    ap.add_argument("--scenarios", type=int, nargs="+", default=[2], choices=(0, 1, 2, 3),
+                    help="scenarios to measure, side by side (0 = procedural tanks: a layout per episode)")
+    ap.add_argument("--env", action="append", default=[],
+                    help="env parameter KEY=VALUE (a range as LOW,HIGH), applied to every scenario; repeatable")
     ap.add_argument("--num-envs", type=int, nargs="+", default=[1024, 4096, 16384, 65536])
     ap.add_argument("--steps", type=int, default=100, help="control steps per timed call")
     ap.add_argument("--repeats", type=int, default=5)
@@ -75,16 +80,24 @@ def main(argv=None) -> int:
     if any(n <= 0 for n in args.num_envs) or args.steps <= 0 or args.repeats <= 0:
         ap.error("--num-envs, --steps and --repeats must be positive")
 
+    overrides = {}
+    for item in args.env:
+        key, sep, value = item.partition("=")
+        if not sep:
+            ap.error(f"--env {item!r}: expected KEY=VALUE")
+        parts = [float(v) if any(c in v for c in ".e") else int(v) for v in value.split(",")]
+        overrides[key] = tuple(parts) if len(parts) > 1 else parts[0]
     meta = run_meta()
     print(json.dumps(meta), flush=True)
-    columns = [("variant", "variant"), ("unroll", "substep_unroll"), ("num_envs", "num_envs"),
+    columns = [("scenario", "scenario"), ("variant", "variant"), ("unroll", "substep_unroll"), ("num_envs", "num_envs"),
                ("compile (s)", "compile_s"), ("control steps/s", "control_steps_per_s"),
                ("simulated s / s", "sim_seconds_per_s"), ("physics steps/s", "physics_steps_per_s")]
     rows, table = [], ""
     for variant in args.variants:
         for unroll in args.unroll:
             for n in args.num_envs:
-                rows.append(measure(args.scenario, n, args.steps, args.repeats, variant, unroll))
+                for scenario in args.scenarios:
+                    rows.append(measure(scenario, n, args.steps, args.repeats, variant, unroll, overrides))
                 print(json.dumps(rows[-1]), flush=True)
                 table = write_results(args.out, "env_throughput", "Environment throughput", meta, rows, columns)
     print(table)

@@ -46,7 +46,8 @@ AUTO_ITERS_PER_CHUNK = {"gpu": 100, "cpu": 10}
 @dataclass(frozen=True)
 class EnvConfig:
     scenario: int = documented(2,
-        "Tank layout: 1 empty, 2 four risers (the paper's training scenario), 3 fifteen obstacles.", (1, 2, 3))
+        "Tank layout: 1 empty, 2 four risers (the paper's training scenario), 3 fifteen obstacles; 0 = "
+        "procedural tanks, a new layout every episode (docrl_jax/envs/layouts.py).", (0, 1, 2, 3))
     num_envs: int = documented(256, "Environments stepped in parallel (per seed). Each vectorised step adds num_envs "
                                     "transitions; see train.updates_per_step for the update-to-data ratio. 'auto' = "
                                     f"{AUTO_NUM_ENVS['gpu']} on a GPU/TPU (the simulator saturates there), "
@@ -160,6 +161,10 @@ class TrainConfig:
                                         "termination or the step limit, on the training distribution of starts/goals.")
     eval_paper_pairs: bool = documented(False, "Also evaluate the paper's air-to-water and water-to-air pairs "
                                                "(eval_episodes each, columns success_air_to_water/_water_to_air).")
+    eval_pair_scenario: int = documented(2,
+        "Scenario whose paper pairs eval_paper_pairs runs when env.scenario is 0 (procedural tanks); a run in "
+        "scenario 1-3 evaluates its own scenario's pairs. The pair episodes run the nominal plant (no dr_* "
+        "randomisation), as the paper's test does.", (1, 2, 3))
     eval_pair_starts: str = documented("paper", "Starts of the paper-pair episodes: 'paper' = the evaluator's trials "
                                                 "(docrl_jax.evaluate.protocol: nominal yaw +-0.1 rad, start +-0.1 m), so the "
                                                 "columns estimate what `evaluate` reports; 'random_yaw' = the exact "
@@ -514,6 +519,17 @@ def _env_kwargs_for_params(e: EnvConfig) -> dict[str, Any]:
 def env_kwargs(c: Config) -> dict[str, Any]:
     """Keyword overrides for `docrl_jax.envs.make(scenario, **kwargs)`."""
     return _env_kwargs_for_params(c.env)
+
+
+def pair_scenario(c: Config) -> int:
+    """The scenario of the run's paper-pair evaluations and videos: its own, or for a procedural run
+    (env.scenario 0) train.eval_pair_scenario."""
+    return c.env.scenario or c.train.eval_pair_scenario
+
+
+def nominal_env_kwargs(c: Config) -> dict[str, Any]:
+    """`env_kwargs` without the domain randomisation (`dr_*`): the nominal plant of the paper's test."""
+    return {k: v for k, v in env_kwargs(c).items() if not k.startswith("dr_")}
 
 
 # ---------------------------------------------------------------------------------------- output

@@ -35,6 +35,19 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         assert dict(c.env.overrides).get("goal_clearance", 1.0) == (0.6 if name.endswith("_lstm") else 1.0)
 
 
+def test_generalist_trains_in_procedural_tanks_under_randomisation():
+    g = load_config("td3_lstm_generalist")
+    env = dict(g.env.overrides)
+    assert g.env.scenario == 0 and g.train.eval_paper_pairs and g.train.eval_pair_scenario == 2
+    # the envelope holds the benchmark's goal perturbations: 2x gusts, 0.25 m/s currents, motor lag x5,
+    # one step of latency, 10 % dropouts
+    assert env["dr_wind_scale"][1] >= 2 and env["dr_current_speed"][1] >= 0.25 and env["dr_motor_tau_scale"][1] >= 5
+    assert env["dr_action_latency"][1] >= 1 and env["dr_obs_latency"][1] >= 1 and env["dr_beam_dropout"][1] >= 0.1
+    for key, value in env.items():
+        if key.startswith("dr_"):
+            assert value[0] <= value[1], key
+
+
 def test_auto_sizes_resolve_per_backend_and_say_so():
     notes = []
     raw = yaml.safe_load((packaged_configs_dir() / "td3_lstm.yaml").read_text())
@@ -69,7 +82,7 @@ def test_bare_name_and_path_resolve_to_the_same_config(tmp_path):
     assert load_config(str(copy)) == load_config("td3_lstm")
     with pytest.raises(ConfigError, match="does not exist"):
         load_config(str(tmp_path / "missing.yaml"))
-    with pytest.raises(ConfigError, match=r"packaged configs: \['ddpg_mlp', 'ddpg_mlp_paper', 'sac_lstm', .*'td3_lstm', 'td3_lstm_paper'\]"):
+    with pytest.raises(ConfigError, match=r"packaged configs: \['ddpg_mlp', 'ddpg_mlp_paper', 'sac_lstm', .*'td3_lstm', 'td3_lstm_generalist', 'td3_lstm_paper'\]"):
         load_config("td4_lstm")
 
 
@@ -98,7 +111,7 @@ def test_wrong_types_are_rejected(override, message):
 
 @pytest.mark.parametrize("overrides, message", [
     (["agent.algo=ppo"], r"valid choices are \['td3', 'sac', 'ddpg'\]"),
-    (["env.scenario=4"], r"valid choices are \[1, 2, 3\]"),
+    (["env.scenario=4"], r"valid choices are \[0, 1, 2, 3\]"),
     (["replay.burn_in=16"], r"must be < replay.seq_len=16"),
     (["agent.gamma=1.0"], r"must be in \[0, 1\)"),
     (["agent.actor=mlp", "agent.actor_hidden=[64]"], r"burn_in=8: an mlp actor has no carry to warm up: set burn_in 0"),

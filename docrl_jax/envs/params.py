@@ -313,7 +313,8 @@ def _validate_ranges(p: EnvParams) -> None:
             f"in [0, {CAPSULE_SLOTS}] (the capsule slots)", True)
     if not 0.0 <= p.layout_beam_fraction <= 1.0:
         _fail("layout_beam_fraction", p.layout_beam_fraction, "must be a probability in [0, 1]")
-    for name in ("dr_mass_scale", "dr_hull_volume_scale", "dr_water_drag_scale", "dr_air_drag_scale",
+    ordered("dr_hull_volume_scale", lambda v: v >= 0, lambda v: v <= 100, "both in [0, 100] (0 = no buoyancy)")
+    for name in ("dr_mass_scale", "dr_water_drag_scale", "dr_air_drag_scale",
                  "dr_added_mass_scale", "dr_thrust_air_scale", "dr_thrust_water_scale", "dr_motor_tau_scale",
                  "dr_wind_scale"):
         ordered(name, lambda v: v > 0, lambda v: v <= 100, "both in (0, 100] (a scale of the nominal value; "

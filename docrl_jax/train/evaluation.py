@@ -4,7 +4,8 @@
 episodes run in parallel with the deterministic policy (TD3/DDPG: actor output; SAC: tanh(mean)),
 each until the goal is reached (success), a collision or bound ends it, or the step limit
 (env.max_episode_steps) truncates it. Starts and goals follow the training distribution; with
-`train.eval_paper_pairs` the paper's air-to-water and water-to-air pairs (`envs.eval_pair`) are run
+`train.eval_paper_pairs` the paper's air-to-water and water-to-air pairs (`envs.eval_pair`, in the
+run's scenario, or `train.eval_pair_scenario` for a procedural run, with the nominal plant) are run
 too, from the evaluator's trial starts (`train.eval_pair_starts`, see `pair_starts`), and for each pair
 the fractions of episodes that ended in a collision or out of bounds are reported too (the rest of the
 failures are time-outs): a direction that stalls below 90 % says why in metrics.csv. The full protocol
@@ -18,7 +19,7 @@ import jax
 import jax.numpy as jnp
 
 import docrl_jax.envs as envs
-from docrl_jax.config import Config, env_kwargs
+from docrl_jax.config import Config, env_kwargs, nominal_env_kwargs, pair_scenario
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, trial_starts
 
 
@@ -36,9 +37,14 @@ def pair_starts(how: str, key: jax.Array, start, direction: str, n: int) -> tupl
 
 def make_evaluate(config: Config, act, init_carry, memory: bool):
     env = envs.make(config.env.scenario, auto_reset=False, **{**env_kwargs(config), "terminate_on_arrival": True})
+    scenario = pair_scenario(config)
+    if scenario == config.env.scenario and nominal_env_kwargs(config) == env_kwargs(config):
+        pair_env = env
+    else:
+        pair_env = envs.make(scenario, auto_reset=False, **{**nominal_env_kwargs(config), "terminate_on_arrival": True})
     n, horizon = config.train.eval_episodes, env.params.max_episode_steps
 
-    def run(actor_params, states, m):
+    def run(env, actor_params, states, m):
         """Runs m episodes in parallel until all have ended (at most the step limit); returns
         per-episode (success, collision, out of bounds, return). Stopping when the last episode ends,
         instead of always running the full step limit, makes an evaluation of a trained policy
@@ -68,15 +74,19 @@ def make_evaluate(config: Config, act, init_carry, memory: bool):
         names = ["success_rate"]
         if config.train.eval_paper_pairs:
             for direction, k in zip(DIRECTIONS, jax.random.split(k_pairs)):
-                start, goal = envs.eval_pair(config.env.scenario, direction)
+                start, goal = envs.eval_pair(scenario, direction)
                 k_start, k_reset = jax.random.split(k)
                 positions, yaws = pair_starts(config.train.eval_pair_starts, k_start, start, direction, n)
-                groups.append(jax.vmap(lambda kk, p, y: env.reset_to(kk, p, y, jnp.array(goal)))(
+                groups.append(jax.vmap(lambda kk, p, y: pair_env.reset_to(kk, p, y, jnp.array(goal)))(
                     jax.random.split(k_reset, n), positions, yaws))
                 names.append(f"success_{direction}")
-        # One batch of all groups: the env step is compiled once.
-        states = jax.tree.map(lambda *xs: jnp.concatenate(xs), *groups)
-        success, collision, oob, ret = run(actor_params, states, n * len(groups))
+        # One batch per env: the env step is compiled once for each (once when the pairs share the env).
+        batches = [groups] if pair_env is env else [groups[:1], groups[1:]] if groups[1:] else [groups]
+        results = []
+        for run_env, batch in zip((env, pair_env), batches):
+            states = jax.tree.map(lambda *xs: jnp.concatenate(xs), *batch)
+            results.append(run(run_env, actor_params, states, n * len(batch)))
+        success, collision, oob, ret = (jnp.concatenate(parts) for parts in zip(*results))
         part = lambda x, i: jnp.mean(x[i * n:(i + 1) * n])  # noqa: E731
         out = {name: part(success, i) for i, name in enumerate(names)}
         for i, name in enumerate(names[1:], start=1):  # the paper pairs' failures

@@ -69,10 +69,11 @@ class TrialVideo:
 
     def _write(self, params, env_steps: int) -> None:
         from docrl_jax import runs
+        from docrl_jax.config import pair_scenario
         from docrl_jax.envs.rendering import Renderer
         from docrl_jax.evaluate import rollout, video
         t0 = time.time()
-        scenario = self.config.env.scenario
+        scenario = pair_scenario(self.config)
         if self._env is None:
             self._env = rollout.make_eval_env(scenario, MAX_STEPS)
             self._renderer = Renderer(self._env.mj_model, self._env.params, WIDTH, HEIGHT, antialias=False)
