@@ -132,9 +132,9 @@ def markdown(rows: Sequence[dict], meta: dict, envelope: dict) -> str:
 
 
 def plot(rows: Sequence[dict], path: Path, envelope: dict, title: str = "") -> Path:
-    """Success % against magnitude, one panel per perturbation (the nominal point at the nominal
-    value), a line per method and direction (averaged over scenarios, median over seeds); a bar panel
-    for the random trips and held-out layouts."""
+    """Success % against magnitude, one panel per perturbation (the nominal point among the
+    magnitudes in order of value, evenly spaced), a line per method and direction (averaged over
+    scenarios, median over seeds); a bar panel for the random trips and held-out layouts."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -170,9 +170,10 @@ def plot(rows: Sequence[dict], path: Path, envelope: dict, title: str = "") -> P
                     ys = [100 * rates.get((m, "perturbations", NOMINAL if not mag else panel, mag, d), math.nan)
                           for mag, _ in points]
                     ls, mk = styles[d]
-                    ax.plot([v for _, v in points], ys, ls, marker=mk, color=colours[m], label=f"{m} {SHORT[d]}")
-            ticks = [(p.label(v) if p else "nominal") + (" (nom.)" if not mag and p else "") for mag, v in points]
-            ax.set_xticks([v for _, v in points], ticks, fontsize=8)
+                    ax.plot(range(len(points)), ys, ls, marker=mk, color=colours[m], label=f"{m} {SHORT[d]}")
+            # Evenly spaced in order of magnitude: the magnitudes span 0 to 10x, a value axis crowds them.
+            ticks = [(p.label(v) if p else "nominal") + ("\n(nominal)" if not mag and p else "") for mag, v in points]
+            ax.set_xticks(range(len(points)), ticks, fontsize=8)
             ax.set_title(p.title if p else "Nominal", fontsize=10)
         ax.set_ylim(-3, 103)
         ax.set_ylabel("success %", fontsize=8)
