@@ -139,7 +139,10 @@ class HUAUVEnv:
         obstacles, _, z_min = self._tank(layout)
         k_med, k_xy, k_z = jax.random.split(key, 3)
         water = jax.random.uniform(k_med) < water_fraction
-        lo, hi = jnp.where(water, jnp.asarray(p.water_band(z_min)), jnp.asarray(p.air_z_range))
+        band = jnp.asarray(p.water_band(z_min))
+        if self.procedural:  # never inside the episode's floor, whatever z_bounds / water_z_range say
+            band = band.at[0].set(jnp.maximum(band[0], layouts.floor_top(layout) + 0.1))
+        lo, hi = jnp.where(water, band, jnp.asarray(p.air_z_range))
         half = geometry.TANK_HALF_WIDTH - p.wall_margin
         xy = jax.random.uniform(k_xy, (n, 2), minval=-half, maxval=half)
         z = jax.random.uniform(k_z, (n, 1), minval=lo, maxval=hi)

@@ -135,7 +135,7 @@ def _clear_points(key, p: EnvParams, z_min):
     xy = jax.random.uniform(k_xy, (2, 2), minval=-half, maxval=half)
     air = jax.random.uniform(k_air, (), minval=p.air_z_range[0], maxval=p.air_z_range[1])
     lo, hi = p.water_band(z_min)
-    water = jax.random.uniform(k_water, (), minval=lo, maxval=hi)
+    water = jax.random.uniform(k_water, (), minval=jnp.maximum(lo, z_min - 0.1), maxval=hi)
     return jnp.concatenate([xy, jnp.stack([air, water])[:, None]], -1)
 
 
@@ -171,6 +171,11 @@ def _solids(box_pos, box_rot, box_size, cap_pos, cap_rot, cap_size) -> geometry.
     axis = cap_rot[:, :, 2] * cap_size[:, 1:2]
     return geometry.Solids(box_pos=box_pos, box_rot=box_rot, box_half=box_size,
                            cap_a=cap_pos - axis, cap_b=cap_pos + axis, cap_radius=cap_size[:, 0])
+
+
+def floor_top(layout: Layout) -> jax.Array:
+    """Height (m) of the layout's floor top."""
+    return layout.pos[0, 2] + layout.size[0, 2]
 
 
 def obstacles(layout: Layout) -> geometry.Solids:

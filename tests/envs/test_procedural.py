@@ -241,6 +241,17 @@ def test_reset_starts_and_goals_are_clear_and_inside_the_episodes_bounds(proc, g
     assert not np.any(states.done) and not np.any(states.info["collision"])
 
 
+@pytest.mark.parametrize("fixed", [{"z_bounds": (-1.9, 4.8)}, {"water_z_range": (-1.7, -0.3)}])
+def test_underwater_starts_stay_above_each_layouts_floor_whatever_the_fixed_bands(fixed):
+    # A fixed lower bound or water band may reach below a procedural floor (which lies anywhere in
+    # layout_floor_top): the sampler keeps starts and goals at least 0.1 m above the episode's floor.
+    env = envs.make(0, wind=False, start_water_fraction=1.0, goal_water_fraction=1.0, **fixed)
+    s = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 64))
+    top = np.asarray(jax.vmap(layouts.floor_top)(s.sim.layout))
+    assert np.all(np.asarray(s.info["position"][:, 2]) >= top + 0.1 - 1e-5)
+    assert np.all(np.asarray(s.sim.goal[:, 2]) >= top + 0.1 - 1e-5)
+
+
 # ---------------------------------------------------------------- rays
 @pytest.fixture(scope="module")
 def cast(proc):
