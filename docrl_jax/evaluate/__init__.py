@@ -9,6 +9,9 @@
     plotting       trajectory figures and Figure 3 (`python -m docrl_jax.plotting`)
     curves         learning curves from metrics.csv
     video          the trials drawn by MuJoCo's renderer to MP4 or GIF (`python -m docrl_jax.render`)
+    robustness     beyond the protocol: perturbation sweeps, random trips, held-out procedural layouts
+    robustness_cli     `python -m docrl_jax.robustness`
+    robustness_report  its robustness.{csv,json,md,png}, the median over seeds
 
 Importing the package loads protocol, rollout and tables only (no Matplotlib, no checkpoint code).
 """

@@ -88,9 +88,6 @@ def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "f
 
 
 # ------------------------------------------------------------------ trials
-_RESETS: dict = {}   # id(env) -> (jit(vmap(env.reset)), env): the random trials' starts and goals
-
-
 def trials_to_render(env, policy, scenario: int, direction: str, num_trials: int = 1, of: int | None = None,
                      max_steps: int = 500, seed: int = 0) -> dict[str, np.ndarray]:
     """The first `num_trials` of the evaluator's `of` (default `num_trials`) trials of one (scenario,
@@ -107,9 +104,7 @@ def trials_to_render(env, policy, scenario: int, direction: str, num_trials: int
     base = jax.random.fold_in(jax.random.PRNGKey(seed), scenario)
     keys = jax.numpy.stack([jax.random.fold_in(base, RANDOM_SALT + i) for i in range(num_trials)])
     k_reset, k_trial = jax.vmap(jax.random.split, out_axes=1)(keys)
-    if id(env) not in _RESETS:   # compiled once per env (keeping the env alive keeps its id unique)
-        _RESETS[id(env)] = (jax.jit(jax.vmap(env.reset)), env)
-    starts = _RESETS[id(env)][0](k_reset)
+    starts = rollout.reset_states(env, k_reset)
     positions, yaws, goals = (np.asarray(starts.info[k]) for k in ("position", "yaw", "goal"))
     fn = rollout.make_rollout(env, policy, max_steps, render=True)
     out = jax.device_get(fn(policy.params, k_trial, positions, yaws, goals))
