@@ -90,13 +90,18 @@ def _rot_y(angle):
                       jnp.stack([-s, zero, c], -1)], -2)
 
 
-def _boxes(key, p: EnvParams, floor_top, z_min):
-    """Poses and sizes of every box slot (used or not): posts/panels on the floor, or beams."""
-    n = BOX_SLOTS
-    k = jax.random.split(key, 9)
+def _slot_draws(key, n: int, p: EnvParams, draws: int):
+    """What every slot kind draws alike: `draws` keys, U(lo, hi) over the n slots, centres (n, 2) over
+    the tank, and which slots are beams (probability `layout_beam_fraction`)."""
+    k = jax.random.split(key, draws)
     u = lambda kk, lo, hi: jax.random.uniform(kk, (n,), minval=lo, maxval=hi)  # noqa: E731
     xy = jax.random.uniform(k[0], (n, 2), minval=-_HALF_SPAN, maxval=_HALF_SPAN)
-    beam = jax.random.uniform(k[1], (n,)) < p.layout_beam_fraction
+    return k, u, xy, jax.random.uniform(k[1], (n,)) < p.layout_beam_fraction
+
+
+def _boxes(key, p: EnvParams, floor_top, z_min):
+    """Poses and sizes of every box slot (used or not): posts/panels on the floor, or beams."""
+    k, u, xy, beam = _slot_draws(key, BOX_SLOTS, p, 9)
     half_thick = u(k[2], 0.1, 0.3)
     # Standing: from inside the floor up to a top between 0.6 m under water and above the walls.
     bottom, top = floor_top - 0.1, u(k[3], -0.6, 5.4)
@@ -113,10 +118,7 @@ def _boxes(key, p: EnvParams, floor_top, z_min):
 def _capsules(key, p: EnvParams, floor_top, z_min):
     """Poses and sizes of every capsule slot: risers on the floor, or tilted bars."""
     n = CAPSULE_SLOTS
-    k = jax.random.split(key, 8)
-    u = lambda kk, lo, hi: jax.random.uniform(kk, (n,), minval=lo, maxval=hi)  # noqa: E731
-    xy = jax.random.uniform(k[0], (n, 2), minval=-_HALF_SPAN, maxval=_HALF_SPAN)
-    bar = jax.random.uniform(k[1], (n,)) < p.layout_beam_fraction
+    k, u, xy, bar = _slot_draws(key, n, p, 8)
     # Riser: vertical segment from just inside the floor to a top between 0.6 m under water and 6 m.
     seg_lo, seg_hi = floor_top - 0.05, u(k[2], -0.6, 6.0)
     riser = jnp.stack([u(k[3], 0.2, 0.6), (seg_hi - seg_lo) / 2, jnp.zeros(n)], -1)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import platform
 import statistics
 from pathlib import Path
 from typing import Sequence
@@ -193,14 +192,8 @@ def plot(rows: Sequence[dict], path: Path, envelope: dict, title: str = "") -> P
 
 
 def versions() -> dict[str, str | None]:
-    from importlib import metadata
-    out: dict[str, str | None] = {"python": platform.python_version()}
-    for name in PACKAGES:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
+    from docrl_jax.resources import versions as installed
+    return installed(PACKAGES)
 
 
 def _clean(x):

@@ -9,12 +9,11 @@ the normalisations, the goal vector's definitions; then the action's meaning, th
 from __future__ import annotations
 
 import datetime as dt
-import platform
-from importlib import metadata
 from typing import Any
 
 import numpy as np
 
+from docrl_jax import resources
 from docrl_jax.config import Config, env_kwargs
 from docrl_jax.envs import ACTION_SIZE, DIST_SCALE, OBS_SIZE, make_params
 from docrl_jax.envs.sensors import NUM_BEAMS, beam_angles
@@ -26,13 +25,7 @@ BATCH = "B"   # the symbolic batch dimension of the ONNX and StableHLO artefacts
 
 def versions() -> dict[str, str | None]:
     """Installed versions of the packages that made (or can run) the artefacts; None = not installed."""
-    out: dict[str, str | None] = {"python": platform.python_version()}
-    for name in VERSION_PACKAGES:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
+    return resources.versions(VERSION_PACKAGES)
 
 
 def io_names(recurrent: bool) -> tuple[list[str], list[str]]:
