@@ -178,7 +178,9 @@ class HUAUVEnv:
 
     def reset_to(self, key: jax.Array, position, yaw, goal, layout=None, plant=None) -> EnvState:
         """Vehicle at `position` with `yaw`, level and at rest, hovering thrust, heading for `goal`. A
-        procedural tank without `layout` draws one that keeps `position` and `goal` clear."""
+        procedural tank without `layout` draws one that keeps `position` and `goal` clear (its `index`
+        names the layout it derives from: the obstacles removed for clearance differ). A given `plant`
+        is used as is: its latencies act only up to the queues the `dr_*_latency` ranges allot."""
         p = self.params
         position = _one_env("reset_to", "position", jnp.asarray(position, jnp.float32), (3,))
         goal = _one_env("reset_to", "goal", jnp.asarray(goal, jnp.float32), (3,))
