@@ -2,7 +2,8 @@
 
 Each adapter must give our env's numbers for the same keys and actions, end episodes where ours does
 with the right terminated/truncated split, and auto-reset as its library expects. The Brax parts
-(the env inside Brax's own training wrappers, and Brax's SAC trainer for a few steps) run
+(the env inside Brax's own training wrappers, with and without its domain-randomisation wrapper, and
+Brax's SAC trainer for a few steps) run
 in a subprocess, tests/envs/_brax_worker.py, started with this module so that it compiles on the second
 core while the Gymnasium tests run here.
 
@@ -27,8 +28,9 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from docrl_jax.envs import OBS_LAYOUT, gym_env
-from docrl_jax.envs.brax_env import BraxHUAUV
+from docrl_jax.envs import OBS_LAYOUT, gym_env, randomization
+from docrl_jax.envs.brax_env import BraxHUAUV, make_randomization_fn, randomization_fn
+from docrl_jax.envs.physics import Plant
 from docrl_jax.envs.gym_env import ENV_ID, HUAUVGymEnv, HUAUVVectorEnv
 
 LIMIT = 4                 # the adapters' step limit in these tests
@@ -107,6 +109,42 @@ def test_brax_env_refuses_our_own_truncation_and_auto_reset():
         BraxHUAUV(scenario=1, max_episode_steps=100)
     with pytest.raises(ValueError, match="AutoResetWrapper"):
         BraxHUAUV(scenario=1, auto_reset=True)
+
+
+def test_brax_sys_is_the_nominal_plant_and_randomization_fn_draws_one_per_env():
+    env = BraxHUAUV(scenario=1, dr_thrust_air_scale=(0.1, 1.0))
+    nominal = env.sys
+    assert isinstance(nominal, Plant)
+    for a, b in zip(nominal, randomization.nominal_plant(env.params)):
+        np.testing.assert_array_equal(a, b)
+    # Brax's signature, as its trainers call it: fn(sys, rng=keys of shape (num_envs, 2)).
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)
+    plants, in_axes = make_randomization_fn(env)(nominal, rng=keys)
+    assert isinstance(plants, Plant) and isinstance(in_axes, Plant) and set(in_axes) == {0}
+    expected = jax.vmap(lambda k: randomization.sample_plant(k, env.params))(keys)
+    for name, leaf in plants._asdict().items():
+        assert leaf.shape == (4,) + np.shape(getattr(nominal, name)), name
+        np.testing.assert_array_equal(leaf, getattr(expected, name), err_msg=name)
+    assert len(set(np.asarray(plants.thrust_air).round(6))) == 4
+    np.testing.assert_array_equal(plants.buoyancy, np.full(4, nominal.buoyancy))   # a range not drawn
+    same, _ = randomization_fn(nominal, keys, params=env.params)
+    np.testing.assert_array_equal(same.thrust_air, plants.thrust_air)
+    # Assigning a plant overrides; None, or the nominal plant read back (what Brax's wrapper restores
+    # on leaving), returns to drawing from the dr_* ranges.
+    one = jax.tree.map(lambda x: x[1], plants)
+    env.sys = one
+    assert env.sys is one and env._plant is one
+    env.sys = nominal
+    assert env._plant is None and env.sys is nominal
+    env.sys = one
+    env.sys = None
+    assert env._plant is None
+    with pytest.raises(TypeError, match="Plant"):
+        env.sys = {"thrust_air": 1.0}
+    with pytest.raises(TypeError, match="params"):
+        randomization_fn(nominal, keys)
+    with pytest.raises(ValueError, match="num_envs"):
+        make_randomization_fn(env)(nominal, jax.random.PRNGKey(0))
 
 
 # ---------------------------------------------------------------------------------------------- Gymnasium
@@ -211,6 +249,19 @@ def test_brax_env_matches_ours_truncates_and_auto_resets(brax_result):
     assert brax_result["env"] == "ok", brax_result["env"]
 
 
+def test_brax_domain_randomization_wrapper_runs_one_plant_per_env(brax_result):
+    """BraxHUAUV(scenario=1, dr_mass_scale=(0.5, 2), dr_thrust_air_scale=(0.1, 1)) in
+    brax.envs.training.wrap(..., randomization_fn=make_randomization_fn(env)) for 4 envs, hovering
+    (tests/envs/_brax_worker.py, check_randomization): each slot's plant is its own draw, stays the
+    same at every step through the time-out and the auto-reset, and its numbers are our env's reset
+    with that plant; the slots' heights drift apart. Brax's plain VmapWrapper leaves the env's own
+    per-slot draws (our env's reset), and with the default ranges every slot runs the nominal plant
+    (check_env_semantics)."""
+    r = brax_result["randomization"]
+    assert "error" not in r, r["error"]
+    assert np.ptp(r["drift"]) > 0.1, r
+
+
 def test_brax_sac_trains_on_our_env(brax_result):
     # The shim: jax 0.10 lacks device_put_replicated, importing the adapter defines it.
     assert not brax_result["jax_had_device_put_replicated"] and brax_result["jax_has_device_put_replicated"]
@@ -221,3 +272,5 @@ def test_brax_sac_trains_on_our_env(brax_result):
         assert r["params_finite"] and r["action_shape"] == [3] and r["action_in_range"], (name, r)
         # Brax's evaluator ran whole episodes of the episode_length given (5 steps, no collisions).
         assert r["eval_episode_length"] == pytest.approx(5.0), (name, r)
+        # It took the randomization_fn: plants for its 4 training envs and its 2 eval envs.
+        assert r["randomized_envs"] == [4, 2], (name, r)
