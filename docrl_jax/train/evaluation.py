@@ -38,10 +38,11 @@ def pair_starts(how: str, key: jax.Array, start, direction: str, n: int) -> tupl
 def make_evaluate(config: Config, act, init_carry, memory: bool):
     env = envs.make(config.env.scenario, auto_reset=False, **{**env_kwargs(config), "terminate_on_arrival": True})
     scenario = pair_scenario(config)
-    if scenario == config.env.scenario and nominal_env_kwargs(config) == env_kwargs(config):
-        pair_env = env
-    else:
-        pair_env = envs.make(scenario, auto_reset=False, **{**nominal_env_kwargs(config), "terminate_on_arrival": True})
+    # The pairs get an env of their own only when they run and differ from the training env.
+    own = config.train.eval_paper_pairs and (scenario != config.env.scenario
+                                             or nominal_env_kwargs(config) != env_kwargs(config))
+    pair_env = (envs.make(scenario, auto_reset=False, **{**nominal_env_kwargs(config), "terminate_on_arrival": True})
+                if own else env)
     n, horizon = config.train.eval_episodes, env.params.max_episode_steps
 
     def run(env, actor_params, states, m):
@@ -81,7 +82,7 @@ def make_evaluate(config: Config, act, init_carry, memory: bool):
                     jax.random.split(k_reset, n), positions, yaws))
                 names.append(f"success_{direction}")
         # One batch per env: the env step is compiled once for each (once when the pairs share the env).
-        batches = [groups] if pair_env is env else [groups[:1], groups[1:]] if groups[1:] else [groups]
+        batches = [groups] if pair_env is env else [groups[:1], groups[1:]]
         results = []
         for run_env, batch in zip((env, pair_env), batches):
             states = jax.tree.map(lambda *xs: jnp.concatenate(xs), *batch)
