@@ -7,18 +7,19 @@
 Exit codes: 0 done, 2 bad config, run directory or file system, 3 non-finite loss, 130 interrupted
 (checkpoint saved).
 
-Compiled programs are kept in JAX's persistent compilation cache, so a second launch of the same
-config (any seed, length or run directory) skips compilation: by default in
-$XDG_CACHE_HOME/docrl_jax/jax (~/.cache/docrl_jax/jax); `--compile-cache DIR` or the environment
-variable DOCRL_JAX_COMPILE_CACHE choose another folder, and `off` disables it.
+Compiled programs are kept in JAX's persistent compilation cache and, whole, in the program store
+inside it (docrl_jax.train.program_store), so a second launch of the same config (any seed, length
+or run directory) skips compilation and tracing: by default in $XDG_CACHE_HOME/docrl_jax/jax
+(~/.cache/docrl_jax/jax); `--compile-cache DIR` or the environment variable DOCRL_JAX_COMPILE_CACHE
+choose another folder, and `off` disables both. "after launch" times count from the process's start.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib
 import json
+import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -36,9 +37,8 @@ from docrl_jax.config import Config, load_config, to_yaml
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, Cadence, Hooks,
-                                  Interrupt, make_console, run_chunks)
+                                  Interrupt, make_console, run_chunks, schedule)
 from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
-from docrl_jax.train.trainer import make_trainer
 
 __all__ = ["EXIT_CONFIG", "EXIT_INTERRUPTED", "EXIT_NONFINITE", "EXIT_OK", "build_parser", "main", "run"]
 
@@ -63,8 +63,21 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def process_start_time() -> float:
+    """When this process started (the wall clock), so 'after launch' includes the imports before
+    main(); main()'s own start where the OS does not say (not Linux)."""
+    try:
+        with open("/proc/self/stat") as f:
+            ticks = int(f.read().rsplit(")", 1)[1].split()[19])  # field 22, starttime, after the command name
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        return time.time() - (uptime - ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return time.time()
+
+
 def main(argv: list[str] | None = None) -> int:
-    launch = time.time()
+    launch = process_start_time()
     args = build_parser().parse_args(argv)
     console = make_console()
     notes: list[str] = []
@@ -149,11 +162,11 @@ class _Display:
             self.console.print(f"{steps:,} steps  {sps:,.0f} steps/s  {eta}  {line}")
 
 
-def _resume(mngr, state_shape, placement, trainer, metrics_path: Path, console: Console, primary: bool):
+def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Path, console: Console, primary: bool):
     """The newest intact checkpoint's runner state and bookkeeping; damaged newer checkpoints are
     named, skipped and set aside. Returns (state, chunks done, wall seconds before, pending
     statistics, best policies or None, the metrics.csv rows of the last evaluation kept)."""
-    t_cfg = trainer.config.train
+    t_cfg = config.train
     restored = checkpoint.restore_newest_intact(
         mngr, state_shape, placement.seed_sharding,
         best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None)
@@ -167,16 +180,16 @@ def _resume(mngr, state_shape, placement, trainer, metrics_path: Path, console: 
         mngr.reload()
     step, state, meta = restored.step, restored.state, restored.meta
     done_chunks = meta["chunk"]
-    if done_chunks * trainer.steps_per_chunk != meta["env_steps"]:
+    if done_chunks * plan.steps_per_chunk != meta["env_steps"]:
         raise RunDirError(f"checkpoint {step} was written with another chunk size; train.log_every and "
                           f"env.num_envs cannot change on resume")
     # A checkpoint from before best-policy tracking starts it afresh at the next evaluation.
     best = best_policy.from_meta(placement.get(restored.best), meta["best"]) if restored.best is not None else None
     # A resume may lengthen the run (--set train.total_env_steps=...); schedules follow the new total.
     state = state.replace(total_steps=placement.put_seeds(
-        np.full(state.total_steps.shape, trainer.total_env_steps, np.int32)))
+        np.full(state.total_steps.shape, plan.total_env_steps, np.int32)))
     last_rows = metrics.truncate_metrics(metrics_path, step) if primary else []
-    console.print(f"resumed from env step {step:,} (chunk {done_chunks}/{trainer.num_chunks})")
+    console.print(f"resumed from env step {step:,} (chunk {done_chunks}/{plan.num_chunks})")
     return state, done_chunks, meta["wall_time_s"], meta["pending"], best, last_rows
 
 
@@ -226,28 +239,29 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     if primary:
         run_dir.mkdir(parents=True, exist_ok=True)
         (run_dir / runs.CONFIG_FILE).write_text(to_yaml(config))
-    trainer = make_trainer(config)
+    plan = schedule(config)
     seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
     keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
     console.print("compiling the training, evaluation and initialisation programs ...")
     with ThreadPoolExecutor(1) as pool:  # TensorBoard's import (seconds on some machines) beside the compile
-        tensorboard = pool.submit(importlib.import_module, "tensorboardX")
+        tensorboard = pool.submit(metrics.import_tensorboard)
         programs, compile_s = compile_programs(config, placement.devices)
-    console.print(f"compiled in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)")
-    startup = {"compile_s": round(compile_s, 2), "launch_to_compiled_s": round(time.time() - launch_time, 2)}
+    console.print(f"{programs.origin} in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)")
+    startup = {"programs": programs.origin, "compile_s": round(compile_s, 2),
+               "launch_to_compiled_s": round(time.time() - launch_time, 2)}
     mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
     metrics_path = run_dir / runs.METRICS_FILE
-    total = placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32))
+    total = placement.put_replicated(np.asarray(plan.total_env_steps, np.int32))
 
     if resume:
         state, done_chunks, wall_before, pending, best, last_rows = _resume(
-            mngr, programs.state_shape, placement, trainer, metrics_path, console, primary)
+            mngr, programs.state_shape, placement, config, plan, metrics_path, console, primary)
     else:
         state = programs.init(keys, total)
         done_chunks, wall_before, pending, best, last_rows = 0, 0.0, metrics.empty_pending(len(seeds)), None, []
         if primary:
             metrics.write_header(metrics_path)
-    env_steps = done_chunks * trainer.steps_per_chunk
+    env_steps = done_chunks * plan.steps_per_chunk
     if primary:
         writer = tensorboard.result().SummaryWriter(str(run_dir / runs.TB_DIR), purge_step=env_steps if resume else None)
     else:
@@ -275,7 +289,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         pending = metrics.empty_pending(len(seeds))
         last_eval = metrics.eval_success(rows)
         videos.after_evaluation(lambda: placement.get(state.agent.actor_average), steps,
-                                final=steps >= trainer.total_env_steps)
+                                final=steps >= plan.total_env_steps)
 
     def save(state, steps: int, chunks: int):
         meta = {"env_steps": steps, "chunk": chunks, "wall_time_s": wall(), "pending": pending, "name": config.name}
@@ -299,7 +313,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         metrics.accumulate(pending, m)
         return True
 
-    display = _Display(console, config.name, trainer.total_env_steps, env_steps, show_progress)
+    display = _Display(console, config.name, plan.total_env_steps, env_steps, show_progress)
 
     def show(m: dict, steps: int, sps: float, eta: str):
         if primary and not startup.get("launch_to_first_chunk_s"):  # start-up as a user sees it
@@ -319,11 +333,11 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
             evals.done()
         startup["launch_to_training_s"] = round(time.time() - launch_time, 2)  # initialised, evaluated at step 0
         state, done_chunks, status = run_chunks(
-            trainer, programs.chunk, state, done_chunks, hooks, evals, saves, interrupt, get=placement.get,
+            plan, programs.chunk, state, done_chunks, hooks, evals, saves, interrupt, get=placement.get,
             any_process=placement.any_process, num_seeds=len(seeds), stop_after_chunks=stop_after_chunks)
     writer.close()
     mngr.close()
-    env_steps = done_chunks * trainer.steps_per_chunk
+    env_steps = done_chunks * plan.steps_per_chunk
     if status == EXIT_OK:
         console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")
     elif status == EXIT_INTERRUPTED:

@@ -16,11 +16,12 @@ already written; none interrupts a checkpoint being written.
 from __future__ import annotations
 
 import contextlib
+import math
 import signal
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 import jax
 import numpy as np
@@ -176,7 +177,23 @@ class Hooks:
     save: Callable[[Any, int, int], None] | None = None  # (runner state, env steps, chunks done); None: never
 
 
-def run_chunks(trainer, chunk: Callable, state, done_chunks: int, hooks: Hooks, evals: Cadence,
+class Schedule(NamedTuple):
+    """A run's chunks, from its config alone (no env, no tracing): what the loop counts."""
+    iters_per_chunk: int     # iterations (one env step of every env, then the updates) per chunk
+    steps_per_chunk: int     # env steps per chunk, all envs together
+    num_chunks: int
+    total_env_steps: int     # train.total_env_steps rounded up to whole chunks
+
+
+def schedule(config) -> Schedule:
+    """A chunk is `train.log_every` env steps rounded up to whole iterations of `env.num_envs`."""
+    n, t = config.env.num_envs, config.train
+    iters = max(1, math.ceil(t.log_every / n))
+    chunks = max(1, math.ceil(t.total_env_steps / (iters * n)))
+    return Schedule(iters, iters * n, chunks, chunks * iters * n)
+
+
+def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: Hooks, evals: Cadence,
                saves: Cadence | None, interrupt: Interrupt, get: Callable = jax.device_get,
                any_process: Callable[[bool], bool] = bool, hp: tuple = (), num_seeds: int = 1, stop_after_chunks: int | None = None):
     """Runs chunks from `done_chunks` to the end of the run. Evaluates when `evals` is due and at the
@@ -185,8 +202,8 @@ def run_chunks(trainer, chunk: Callable, state, done_chunks: int, hooks: Hooks, 
     (`SeedPlacement.get` and `.any_process`: several processes stop together). `stop_after_chunks` acts
     like a Ctrl-C after that many chunks of this call (tests). Returns (state, done_chunks, status)."""
     eta = Eta()
-    total = trainer.num_chunks * trainer.steps_per_chunk
-    env_steps = done_chunks * trainer.steps_per_chunk
+    total = plan.num_chunks * plan.steps_per_chunk
+    env_steps = done_chunks * plan.steps_per_chunk
     status, this_call = EXIT_OK, 0
 
     def timed_eval(state, steps):
@@ -195,7 +212,7 @@ def run_chunks(trainer, chunk: Callable, state, done_chunks: int, hooks: Hooks, 
         eta.add_eval(time.time() - t0)
         evals.done()
 
-    while done_chunks < trainer.num_chunks:
+    while done_chunks < plan.num_chunks:
         t0 = time.time()
         state, m = chunk(state, *hp)
         m = get(wait(m, interrupt))
@@ -204,9 +221,9 @@ def run_chunks(trainer, chunk: Callable, state, done_chunks: int, hooks: Hooks, 
             status = EXIT_NONFINITE
             break
         done_chunks, this_call = done_chunks + 1, this_call + 1
-        prev, env_steps = env_steps, done_chunks * trainer.steps_per_chunk
-        eta.add_chunk(dt, learning=int(np.min(m["learn_iters"])) >= trainer.iters_per_chunk)
-        final = done_chunks == trainer.num_chunks
+        prev, env_steps = env_steps, done_chunks * plan.steps_per_chunk
+        eta.add_chunk(dt, learning=int(np.min(m["learn_iters"])) >= plan.iters_per_chunk)
+        final = done_chunks == plan.num_chunks
         # Every decision below is agreed over the processes (`any_process`): the evaluation and the
         # save are collective, and each process's wall clock would decide the minutes cadences alone.
         if final or any_process(evals.due(prev, env_steps)):
@@ -219,8 +236,8 @@ def run_chunks(trainer, chunk: Callable, state, done_chunks: int, hooks: Hooks, 
             saves.done()
             interrupt.newest = f"env step {env_steps:,}"
         interrupt.next_stop = f"after the running chunk (about {duration(dt)})"
-        sps = trainer.steps_per_chunk * num_seeds / dt  # env steps/s of all seeds in this chunk
-        hooks.show(m, env_steps, sps, eta.text(trainer.num_chunks - done_chunks,
+        sps = plan.steps_per_chunk * num_seeds / dt  # env steps/s of all seeds in this chunk
+        hooks.show(m, env_steps, sps, eta.text(plan.num_chunks - done_chunks,
                                                 evals.remaining(env_steps, total)))
         if stop and not final:
             status = EXIT_INTERRUPTED

@@ -11,9 +11,25 @@ from __future__ import annotations
 
 import csv
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
+
+
+def import_tensorboard():
+    """tensorboardX, imported without PyTorch where torch is installed but not yet imported:
+    tensorboardX imports torch only to accept torch tensors (this package logs floats), and that
+    import costs seconds of a launch that otherwise starts training in about ten."""
+    block = "torch" not in sys.modules
+    if block:
+        sys.modules["torch"] = None  # `import torch` raises ImportError, which tensorboardX expects
+    try:
+        import tensorboardX
+    finally:
+        if block and sys.modules.get("torch", False) is None:
+            del sys.modules["torch"]
+    return tensorboardX
 
 # Fractions of the paper-pair evaluation episodes (train.eval_paper_pairs) that ended in a collision
 # or out of bounds; with the success fraction, the rest are time-outs. Older runs' metrics.csv lack

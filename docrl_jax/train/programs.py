@@ -1,6 +1,7 @@
 """The compiled programs of a run (init, chunk, evaluate), built for the devices the seeds are split
-over and compiled once per process; and JAX's persistent compilation cache, which makes the next
-process skip compiling too.
+over and compiled once per process; JAX's persistent compilation cache, which makes the next
+process skip compiling; and the program store beside it (docrl_jax.train.program_store), which makes
+it skip tracing too.
 
 On one device the programs vmap over the seeds (one seed: the unbatched program on a seed axis of
 size 1, because under vmap a per-seed `lax.cond` becomes a select that computes both branches, so
@@ -30,7 +31,7 @@ from jax.sharding import NamedSharding, PartitionSpec
 from docrl_jax import sharding
 from docrl_jax.algorithms.common import HParams, hparams_neutral
 from docrl_jax.config import Config
-from docrl_jax.train.trainer import make_trainer
+from docrl_jax.train import program_store
 
 _EVAL_SALT = 0x5EA1
 
@@ -79,6 +80,7 @@ class Programs(NamedTuple):
     chunk: Callable       # (RunnerState, [hp]) -> (RunnerState, chunk metrics); donates its state
     evaluate: Callable    # (actor params stacked over seeds, keys (S, 2)) -> per-seed eval metrics
     state_shape: Any      # the RunnerState's shapes (what a checkpoint is restored into)
+    origin: str = "compiled"  # "compiled" in this process, or "loaded" from the program store
 
 
 def program_config(config: Config, traced: bool = False) -> Config:
@@ -105,35 +107,69 @@ _COMPILED: dict = {}
 
 def compile_programs(config: Config, devices: tuple | None = None, traced: bool = False) -> tuple[Programs, float]:
     """The run's programs for `devices` (the tuple from `sharding.seed_devices`; None resolves
-    train.devices here, for callers without a run's placement), compiled ahead of time, all at once in threads (XLA compiles them in parallel, which shortens start-up). Returns
-    them and the seconds this call spent compiling (0 when memoised)."""
+    train.devices here, for callers without a run's placement). Memoised in the process; else loaded
+    from the program store when an earlier launch built them (docrl_jax.train.program_store: no env
+    build, no tracing); else compiled ahead of time, all at once in threads (XLA compiles them in
+    parallel), and stored (in a background thread). Returns them and the seconds this call spent (0 when memoised)."""
     devices = sharding.seed_devices(config.train)[0] if devices is None else devices
     config = program_config(config, traced)
     key, eval_key = (config, devices, traced), (program_config(config, True), devices, "evaluate")
     if key in _COMPILED and eval_key in _COMPILED:
         return _COMPILED[key], 0.0
+    t0 = time.time()
+    store, names = program_store.folder(), store_names(config, devices, traced)
+    compiled = _load(store, names, devices) if store is not None else None
+    origin = "loaded"
+    if compiled is None:
+        compiled, storable, origin = *_compile(config, devices, traced, eval_key), "compiled"
+        if store is not None and storable:  # written beside the run's start, not before it
+            program_store.save_in_background(store, {names[what]: compiled[what] for what in storable})
+    _COMPILED[eval_key] = compiled["evaluate"]
+    # The runner state's shapes, as the init program returns them (what a checkpoint is restored into).
+    state_shape = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype), compiled["init"].out_info)
+    _COMPILED[key] = Programs(compiled["init"], compiled["chunk"], compiled["evaluate"], state_shape, origin)
+    return _COMPILED[key], time.time() - t0
+
+
+def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[str, str]:
+    """The program store's entry names of init, chunk and evaluate for this config and devices."""
+    config = program_config(config, traced)
+    described = {"init": (config, traced), "chunk": (config, traced), "evaluate": (program_config(config, True), None)}
+    return {what: program_store.key(repr(c), program_store.device_key(devices), kind, what)
+            for what, (c, kind) in described.items()}
+
+
+def _load(store, names: dict, devices) -> dict | None:
+    """All three programs from the store, loaded in threads, or None if any is missing."""
+    with ThreadPoolExecutor(len(names)) as pool:
+        done = {what: pool.submit(program_store.load, store, name, devices) for what, name in names.items()}
+        loaded = {what: f.result() for what, f in done.items()}
+    return loaded if all(p is not None for p in loaded.values()) else None
+
+
+def _compile(config: Config, devices: tuple, traced: bool, eval_key) -> tuple[dict, list]:
+    """init, chunk and evaluate traced and compiled, in threads (evaluate reused from the memo), and
+    the names of those the store may keep (program_store.compile_lowered)."""
     init, chunk, evaluate = _jitted(config, devices, traced)
     n = config.train.num_seeds
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)
     hp = (hparams_shape(n, config),) if traced else ()
     state_shape = jax.eval_shape(init, keys, total, *hp)
-    jobs = {"init": lambda: init.lower(keys, total, *hp).compile(),
-            "chunk": lambda: chunk.lower(state_shape, *hp).compile()}
+    lowerings = {"init": lambda: init.lower(keys, total, *hp), "chunk": lambda: chunk.lower(state_shape, *hp)}
     if eval_key not in _COMPILED:
-        jobs["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys).compile()
-    t0 = time.time()
-    with ThreadPoolExecutor(len(jobs)) as pool:
-        done = {name: pool.submit(job) for name, job in jobs.items()}
+        lowerings["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys)
+    with ThreadPoolExecutor(len(lowerings)) as pool:
+        done = {name: pool.submit(program_store.compile_lowered, lower, devices[0].platform)
+                for name, lower in lowerings.items()}
         compiled = {name: f.result() for name, f in done.items()}
-    if "evaluate" in compiled:
-        _COMPILED[eval_key] = compiled["evaluate"]
-    _COMPILED[key] = Programs(compiled["init"], compiled["chunk"], _COMPILED[eval_key], state_shape)
-    return _COMPILED[key], time.time() - t0
+    return ({"evaluate": _COMPILED.get(eval_key), **{name: c for name, (c, _) in compiled.items()}},
+            [name for name, (_, ok) in compiled.items() if ok])
 
 
 def _jitted(config: Config, devices: tuple, traced: bool):
     """init, chunk and evaluate over the seed axis, jitted (not yet compiled) for `devices`."""
+    from docrl_jax.train.trainer import make_trainer  # the env and its MJX imports: only when tracing
     trainer = make_trainer(config)
     batched = config.train.num_seeds // len(devices) > 1   # seeds per device
     squeeze = lambda tree: jax.tree.map(lambda x: x[0], tree)  # noqa: E731

@@ -55,10 +55,9 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, HParams, hparams_neutral
 from docrl_jax.config import Config, field_docs, load_config, parse_overrides, to_yaml, validate
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import metrics
-from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Hooks, Interrupt, make_console, run_chunks
+from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Hooks, Interrupt, make_console, run_chunks, schedule
 from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
-from docrl_jax.train.trainer import make_trainer
 
 SWEEP_FILE = runs.SWEEP_FILE
 TRACED_KEYS = tuple(f"agent.{k}" for k in HPARAM_KEYS)
@@ -240,13 +239,13 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     seeds = [s for _, s in rows]
     if placement.note:
         console.print(f"[yellow]note:[/] {placement.note}")
-    trainer = make_trainer(cfg)
+    plan = schedule(cfg)
     keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
     hp = jax.tree.map(placement.put_seeds, HParams.stack([HParams.from_agent_config(c.config.agent)
                                                           for c, _ in rows]))
     programs, compile_s = compile_programs(cfg, placement.devices, traced=True)
-    console.print(f"compiled in {compile_s:.1f} s")
-    total = placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32))
+    console.print(f"{programs.origin} in {compile_s:.1f} s")
+    total = placement.put_replicated(np.asarray(plan.total_env_steps, np.int32))
     state = programs.init(keys, total, hp)
     pending = metrics.empty_pending(len(rows))
     trained_actor = [c.config.train.eval_trained_actor and c.config.agent.policy_average_tau < 1.0 for c, _ in rows]
@@ -287,7 +286,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     evals = Cadence(t.eval_every, t.eval_every_minutes)
     evaluate(state, 0)
     evals.done()
-    _, _, status = run_chunks(trainer, programs.chunk, state, 0, hooks, evals, None, interrupt, get=placement.get,
+    _, _, status = run_chunks(plan, programs.chunk, state, 0, hooks, evals, None, interrupt, get=placement.get,
                               hp=(hp,), num_seeds=len(rows))
     return status
 

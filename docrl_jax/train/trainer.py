@@ -22,7 +22,6 @@ between chunks logs, evaluates (docrl_jax.train.evaluation) and checkpoints. `ma
 from __future__ import annotations
 
 import functools
-import math
 from typing import Any, Callable, NamedTuple
 
 import jax
@@ -35,6 +34,7 @@ from docrl_jax.config import Config, env_kwargs
 from docrl_jax.networks import expand_flag
 from docrl_jax.replay import BufferState, make_sequence_buffer
 from docrl_jax.train.evaluation import make_evaluate
+from docrl_jax.train.loop import schedule
 
 
 @struct.dataclass
@@ -84,10 +84,7 @@ def make_trainer(config: Config) -> Trainer:
     agent = make_agent(config)
     memory = config.agent.recurrent
     buffer = make_sequence_buffer(e.num_envs, r.buffer_size // e.num_envs, r.batch_size, r.seq_len)
-    iters_per_chunk = max(1, math.ceil(t.log_every / e.num_envs))
-    steps_per_chunk = iters_per_chunk * e.num_envs
-    num_chunks = max(1, math.ceil(t.total_env_steps / steps_per_chunk))
-    total = num_chunks * steps_per_chunk
+    iters_per_chunk, steps_per_chunk, num_chunks, total = schedule(config)
     n = e.num_envs
 
     def init_carry(batch_shape=()):

@@ -1,0 +1,90 @@
+"""The program store: a later launch loads the compiled programs an earlier one stored, without
+building the env or tracing, and they compute exactly what the compiled ones do; a damaged entry is
+a miss; entry names follow what shapes the programs and nothing else."""
+
+from __future__ import annotations
+
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from docrl_jax.train import program_store, programs
+from docrl_jax.train import trainer as trainer_module
+
+from _trainer_common import easy_config
+
+
+def _leaves_equal(a, b) -> bool:
+    return jax.tree.structure(a) == jax.tree.structure(b) and all(
+        np.array_equal(np.asarray(x), np.asarray(y), equal_nan=True) for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)))
+
+
+def test_stored_programs_load_without_tracing_and_compute_the_same(tmp_path, monkeypatch):
+    config = easy_config()
+    devices = (jax.devices()[0],)
+    compiled, _ = programs.compile_programs(config, devices)   # compiled in this process (or memoised)
+    names = programs.store_names(config, devices)
+    for what, name in names.items():
+        assert program_store.save(tmp_path, name, getattr(compiled, what)), what
+
+    # A new launch: nothing in memory, the store in place, and tracing impossible.
+    monkeypatch.setattr(programs, "_COMPILED", {})
+    monkeypatch.setattr(program_store, "folder", lambda: tmp_path)
+    monkeypatch.setattr(trainer_module, "make_trainer", lambda *a: pytest.fail("the env was built: not loaded"))
+    loaded, _ = programs.compile_programs(easy_config(train__seed=5, train__total_env_steps=48000), devices)
+    assert loaded.origin == "loaded" and compiled.origin == "compiled"
+    assert jax.tree.structure(loaded.state_shape) == jax.tree.structure(compiled.state_shape)
+    assert jax.tree.leaves(loaded.state_shape) == jax.tree.leaves(compiled.state_shape)
+
+    keys = jnp.stack([jax.random.PRNGKey(3)])
+    total = jnp.asarray(4000, jnp.int32)
+    results = []
+    for progs in (compiled, loaded):
+        state = progs.init(keys, total)
+        ev = progs.evaluate(state.agent.actor_average, keys)
+        state, m = progs.chunk(state)
+        results.append((jax.device_get(state), jax.device_get(m), jax.device_get(ev)))
+    assert _leaves_equal(results[0], results[1])
+
+
+def test_damaged_entries_are_misses_and_old_ones_are_pruned(tmp_path, monkeypatch):
+    devices = (jax.devices()[0],)
+    f = jax.jit(lambda x: jnp.sin(x) * 2.0).lower(jnp.ones(3)).compile()
+    assert program_store.save(tmp_path, "a", f)
+    assert np.allclose(program_store.load(tmp_path, "a", devices)(jnp.ones(3)), 2 * np.sin(1.0))
+    assert program_store.load(tmp_path, "absent", devices) is None
+    (tmp_path / "a.bin").write_bytes(b"not a program")
+    assert program_store.load(tmp_path, "a", devices) is None
+
+    monkeypatch.setattr(program_store, "MAX_ENTRIES", 3)
+    for i in range(5):
+        (tmp_path / f"old{i}.bin").write_bytes(b"x")
+        os.utime(tmp_path / f"old{i}.bin", (i, i))
+    assert program_store.save(tmp_path, "new", f)
+    assert sorted(p.name for p in tmp_path.glob("*.bin")) == ["a.bin", "new.bin", "old4.bin"]
+
+
+def test_entry_names_follow_what_shapes_the_programs():
+    devices = (jax.devices()[0],)
+    base = programs.store_names(easy_config(), devices)
+    assert len(set(base.values())) == 3
+    # Seeds, run length and cadences are arguments or runner-state fields: same programs.
+    assert programs.store_names(easy_config(train__seed=9, train__total_env_steps=24000, train__eval_every=7), devices) == base
+    # The shapes change with the envs: new init and chunk, and a new evaluation only if it changes.
+    other = programs.store_names(easy_config(env__num_envs=32), devices)
+    assert other["init"] != base["init"] and other["chunk"] != base["chunk"]
+    # A sweep's traced programs are others; they share the plain run's evaluation.
+    traced = programs.store_names(easy_config(), devices, traced=True)
+    assert traced["chunk"] != base["chunk"] and traced["evaluate"] == base["evaluate"]
+    # An edited checkout never loads an old entry.
+    program_store.source_digest.cache_clear()
+    try:
+        original = program_store.source_digest()
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(program_store, "source_digest", lambda: original[::-1])
+            assert programs.store_names(easy_config(), devices)["chunk"] != base["chunk"]
+    finally:
+        program_store.source_digest.cache_clear()
