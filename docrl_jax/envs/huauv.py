@@ -110,7 +110,7 @@ class HUAUVEnv:
         mujoco.mj_forward(self.mj_model, mj_data)
         self._data0 = mjx.put_data(self.mj_model, mj_data, device=device)
         self._wind_every = max(1, int(round(params.wind_period / params.control_dt)))
-        self._unroll = params.substep_unroll or (1 if jax.default_backend() == "cpu" else 5)
+        self._unroll = params.substep_unroll or (1 if jax.default_backend() == "cpu" else 2)
 
     @property
     def control_dt(self) -> float:

@@ -30,8 +30,9 @@ class EnvParams:
     physics_dt: float = documented(0.01, "Physics substep in seconds; must divide control_dt and be <= 0.01 "
                                          "(the original Gazebo max_step_size).")
     substep_unroll: int | None = documented(None,
-        "Speed only: physics substeps XLA unrolls per loop iteration (same results for any value). None = 5 "
-        "on GPU/TPU (+11 % at 65,536 envs on an H200, benchmarks/results/) and 1 on CPU (faster there).")
+        "Speed only: physics substeps XLA unrolls per loop iteration (same results for any value). None = 2 "
+        "on GPU/TPU (5 steps 1-3 % faster but compiles ~8 s longer on an H100, docs/BENCHMARKS.md) and 1 on "
+        "CPU (faster there).")
     max_episode_steps: int = documented(500, "Steps before truncation (paper: 500).")
     arrival_distance: float = documented(0.5, "Goal reached when the 3-D distance is below this (paper c_d = 0.5 m).")
     collision_distance: float = documented(0.5, "Collision when the smallest range is below this (paper c_o = 0.5 m).")

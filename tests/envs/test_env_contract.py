@@ -122,6 +122,20 @@ def test_same_key_same_trajectory_and_different_keys_differ(env_fns):
     assert not np.allclose(np.asarray(obs1), np.asarray(obs3))
 
 
+def test_substep_unroll_is_speed_only():
+    """The GPU default unrolls the physics substeps two at a time, the CPU's one: same dynamics."""
+    start, goal = jnp.array([0.0, 0.0, 2.0]), jnp.array([3.0, 0.0, 1.0])
+    acts = jax.random.uniform(jax.random.PRNGKey(3), (4, 3), minval=-1, maxval=1)
+    outs = []
+    for unroll in (1, 2):
+        env = envs.make(2, substep_unroll=unroll)
+        run = jax.jit(lambda s, a: jax.lax.scan(lambda s, a: (env.step(s, a), None), s, a)[0])
+        final = run(env.reset_to(jax.random.PRNGKey(5), start, 0.3, goal), acts)
+        outs.append((np.asarray(final.obs), np.asarray(final.info["position"])))
+    np.testing.assert_allclose(outs[0][0], outs[1][0], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(outs[0][1], outs[1][1], rtol=1e-5, atol=1e-6)
+
+
 def test_jit_vmap_64_envs_long_random_rollouts_with_resets_stay_finite():
     """jit + vmap over 64 envs with auto-reset: 400 steps of random, extreme and non-finite actions, in
     scenario 3 with sensor noise. Nothing non-finite may come out, and episodes must end and restart."""
