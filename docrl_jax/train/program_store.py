@@ -15,6 +15,7 @@ cache: point the cache only at folders you write.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import os
@@ -130,7 +131,9 @@ def compile_lowered(lower: Callable[[], jax.stages.Lowered], platform: str) -> t
 
 def save(store: Path, name: str, compiled: jax.stages.Compiled) -> bool:
     """Writes `compiled` as entry `name` (atomically: a reader sees the old entry or the whole new
-    one). Returns False when the program cannot be serialised or the folder is not writable."""
+    one). Returns False when the program cannot be serialised or the folder is not writable: the
+    store only saves time, so its failures never stop a run."""
+    tmp = None
     try:
         payload, in_tree, out_tree = serialize_executable.serialize(compiled)
         store.mkdir(parents=True, exist_ok=True)
@@ -138,10 +141,14 @@ def save(store: Path, name: str, compiled: jax.stages.Compiled) -> bool:
         with os.fdopen(fd, "wb") as f:
             pickle.dump((FORMAT, payload, in_tree, out_tree), f, protocol=pickle.HIGHEST_PROTOCOL)
         os.replace(tmp, store / f"{name}.bin")
-        _prune(store)
-        return True
-    except (OSError, ValueError, NotImplementedError, pickle.PicklingError, TypeError):
+        tmp = None
+    except Exception:  # noqa: BLE001  (serialisation, pickling or the file system: the run goes on)
         return False
+    finally:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+    _prune(store)
+    return True
 
 
 def save_in_background(store: Path, programs: dict) -> threading.Thread:
@@ -155,7 +162,12 @@ def save_in_background(store: Path, programs: dict) -> threading.Thread:
 
 def _prune(store: Path) -> None:
     """Removes all but the MAX_ENTRIES most recently used entries (an edited checkout or another
-    config leaves its old programs behind)."""
-    entries = sorted(store.glob("*.bin"), key=lambda p: p.stat().st_mtime, reverse=True)
-    for path in entries[MAX_ENTRIES:]:
-        path.unlink(missing_ok=True)
+    config leaves its old programs behind). Other processes may prune the same folder at once."""
+    def used(path: Path) -> float:
+        try:
+            return path.stat().st_mtime
+        except OSError:
+            return 0.0
+    for path in sorted(store.glob("*.bin"), key=used, reverse=True)[MAX_ENTRIES:]:
+        with contextlib.suppress(OSError):
+            path.unlink()

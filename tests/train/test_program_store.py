@@ -65,6 +65,11 @@ def test_damaged_entries_are_misses_and_old_ones_are_pruned(tmp_path, monkeypatc
         os.utime(tmp_path / f"old{i}.bin", (i, i))
     assert program_store.save(tmp_path, "new", f)
     assert sorted(p.name for p in tmp_path.glob("*.bin")) == ["a.bin", "new.bin", "old4.bin"]
+    assert not list(tmp_path.glob(".*.tmp"))
+
+    # A folder that cannot be written: no entry, no exception (the store only saves time).
+    (tmp_path / "a_file").write_text("")
+    assert program_store.save(tmp_path / "a_file" / "programs", "b", f) is False
 
 
 def test_entry_names_follow_what_shapes_the_programs():
