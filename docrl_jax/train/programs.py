@@ -32,6 +32,7 @@ from docrl_jax import sharding
 from docrl_jax.algorithms.common import HParams, hparams_neutral
 from docrl_jax.config import Config
 from docrl_jax.train import program_store
+from docrl_jax.train.trainer import make_trainer
 
 _EVAL_SALT = 0x5EA1
 
@@ -100,8 +101,8 @@ def hparams_shape(num_rows: int, config: Config):
                         HParams.from_agent_config(config.agent))
 
 
-# The one memo of compiled programs, by (program config, devices, what): a resume or a second run
-# of the same shapes in one process compiles nothing.
+# The one memo of compiled programs, by their store entry names: a resume or a second run of the
+# same shapes in one process compiles nothing.
 _COMPILED: dict = {}
 
 
@@ -113,22 +114,25 @@ def compile_programs(config: Config, devices: tuple | None = None, traced: bool 
     parallel), and stored (in a background thread). Returns them and the seconds this call spent (0 when memoised)."""
     devices = sharding.seed_devices(config.train)[0] if devices is None else devices
     config = program_config(config, traced)
-    key, eval_key = (config, devices, traced), (program_config(config, True), devices, "evaluate")
-    if key in _COMPILED and eval_key in _COMPILED:
-        return _COMPILED[key], 0.0
+    # The store's entry names describe the programs, so they key the memo too: the evaluation alone
+    # (a sweep and a plain run of the same shapes share it) and the three together.
+    names = store_names(config, devices, traced)
+    whole = tuple(names.values())
+    if whole in _COMPILED:
+        return _COMPILED[whole], 0.0
     t0 = time.time()
-    store, names = program_store.folder(), store_names(config, devices, traced)
+    store = program_store.folder()
     compiled = _load(store, names, devices) if store is not None else None
     origin = "loaded"
     if compiled is None:
-        compiled, storable, origin = *_compile(config, devices, traced, eval_key), "compiled"
+        compiled, storable, origin = *_compile(config, devices, traced, names["evaluate"]), "compiled"
         if store is not None and storable:  # written beside the run's start, not before it
             program_store.save_in_background(store, {names[what]: compiled[what] for what in storable})
-    _COMPILED[eval_key] = compiled["evaluate"]
+    _COMPILED[names["evaluate"]] = compiled["evaluate"]
     # The runner state's shapes, as the init program returns them (what a checkpoint is restored into).
     state_shape = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype), compiled["init"].out_info)
-    _COMPILED[key] = Programs(compiled["init"], compiled["chunk"], compiled["evaluate"], state_shape, origin)
-    return _COMPILED[key], time.time() - t0
+    _COMPILED[whole] = Programs(compiled["init"], compiled["chunk"], compiled["evaluate"], state_shape, origin)
+    return _COMPILED[whole], time.time() - t0
 
 
 def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[str, str]:
@@ -169,7 +173,6 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key) -> tuple[di
 
 def _jitted(config: Config, devices: tuple, traced: bool):
     """init, chunk and evaluate over the seed axis, jitted (not yet compiled) for `devices`."""
-    from docrl_jax.train.trainer import make_trainer  # the env and its MJX imports: only when tracing
     trainer = make_trainer(config)
     batched = config.train.num_seeds // len(devices) > 1   # seeds per device
     squeeze = lambda tree: jax.tree.map(lambda x: x[0], tree)  # noqa: E731

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from docrl_jax.train import program_store, programs
-from docrl_jax.train import trainer as trainer_module
 
 from _trainer_common import easy_config
 
@@ -33,7 +32,7 @@ def test_stored_programs_load_without_tracing_and_compute_the_same(tmp_path, mon
     # A new launch: nothing in memory, the store in place, and tracing impossible.
     monkeypatch.setattr(programs, "_COMPILED", {})
     monkeypatch.setattr(program_store, "folder", lambda: tmp_path)
-    monkeypatch.setattr(trainer_module, "make_trainer", lambda *a: pytest.fail("the env was built: not loaded"))
+    monkeypatch.setattr(programs, "make_trainer", lambda *a: pytest.fail("the env was built: not loaded"))
     loaded, _ = programs.compile_programs(easy_config(train__seed=5, train__total_env_steps=48000), devices)
     assert loaded.origin == "loaded" and compiled.origin == "compiled"
     assert jax.tree.structure(loaded.state_shape) == jax.tree.structure(compiled.state_shape)
