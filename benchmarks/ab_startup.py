@@ -36,18 +36,21 @@ def launch(root: str, cache: str, run_dir: str, config: str) -> dict:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([root] + [p for p in os.environ.get("PYTHONPATH", "").split(
         os.pathsep) if p and os.path.abspath(p) != os.path.abspath(os.getcwd())])}
     startup = os.path.join(run_dir, "startup.json")
-    t0 = time.time()
-    proc = subprocess.Popen([sys.executable, "-m", "docrl_jax.train", "--config", config, "--set",
-                             "train.total_env_steps=819200", "--run-dir", run_dir, "--compile-cache", cache,
-                             "--no-progress"], cwd=root, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
-    seen = None
-    while proc.poll() is None:
-        if seen is None and os.path.exists(startup):
-            seen = time.time() - t0
-        time.sleep(0.01)
-    if proc.returncode != 0:
-        raise SystemExit(f"launch failed ({proc.returncode}): {proc.stderr.read()[-3000:]}")
+    # The trainer's output goes to a file, not a pipe: a pipe nobody reads while polling would fill
+    # and stall the launch being timed.
+    with tempfile.TemporaryFile("w+") as log:
+        t0 = time.time()
+        proc = subprocess.Popen([sys.executable, "-m", "docrl_jax.train", "--config", config, "--set",
+                                 "train.total_env_steps=819200", "--run-dir", run_dir, "--compile-cache", cache,
+                                 "--no-progress"], cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT)
+        seen = None
+        while proc.poll() is None:
+            if seen is None and os.path.exists(startup):
+                seen = time.time() - t0
+            time.sleep(0.01)
+        if proc.returncode != 0:
+            log.seek(0)
+            raise SystemExit(f"launch failed ({proc.returncode}): {log.read()[-3000:]}")
     with open(startup) as f:
         return {"spawn_to_first_chunk_s": round(seen, 2), **json.load(f)}
 

@@ -242,7 +242,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     plan = schedule(config)
     seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
     keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
-    console.print("compiling the training, evaluation and initialisation programs ...")
+    console.print("compiling (or loading) the training, evaluation and initialisation programs ...")
     with ThreadPoolExecutor(1) as pool:  # TensorBoard's import (seconds on some machines) beside the compile
         tensorboard = pool.submit(metrics.import_tensorboard)
         programs, compile_s = compile_programs(config, placement.devices)
