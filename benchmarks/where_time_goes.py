@@ -193,9 +193,8 @@ def _touch(tree):
 
 
 def agent_critic(config):
-    from docrl_jax.networks import Critic
-    a = config.agent
-    return Critic(hidden=a.critic_hidden, num=1 if a.algo == "ddpg" else 2, layer_norm=a.critic_layer_norm)
+    from docrl_jax.networks import make_critic
+    return make_critic(config.agent, num=1 if config.agent.algo == "ddpg" else 2)
 
 
 # ------------------------------------------------------------------ parent

@@ -41,6 +41,9 @@ AUTO_STEPS_PER_ENV = {"gpu": 256, "cpu": 1024}
 # GPU a chunk of 100 takes ~1.5 s; on a 2-core CPU 10 already take ~10-30 s, and the progress line,
 # its ETA and Ctrl-C all wait for the chunk to end.
 AUTO_ITERS_PER_CHUNK = {"gpu": 100, "cpu": 10}
+# `agent.critic_dtype: auto`: bf16 activations where they are faster (an H100 update: -35 %); on a
+# CPU XLA emulates bf16 matmuls and a td3_lstm iteration is ~10 % slower with them.
+AUTO_CRITIC_DTYPE = {"gpu": "bfloat16", "cpu": "float32"}
 
 
 @dataclass(frozen=True)
@@ -95,6 +98,12 @@ class AgentConfig:
     critic_layer_norm: bool = documented(False,
         "LayerNorm before every hidden ReLU of the critics (ours; the paper's "
         "critics have none). Keeps Q stable with large batches and high rates.")
+    critic_dtype: str = documented("float32",
+        "Dtype of the critics' activations: float32 (the paper's), bfloat16, or 'auto' = "
+        "bfloat16 on a GPU/TPU and float32 on a CPU (ours). Parameters, optimiser state, "
+        "targets and losses stay float32. bfloat16 halves the memory traffic of the "
+        "critics' layers and LayerNorms, which is what an update spends its time on "
+        "(docs/BENCHMARKS.md, 'What an update costs').", ("float32", "bfloat16"))
     n_step: int = documented(1, "TD target over n rewards inside each sampled sequence (1 = the paper's one-step "
                                 "target); never crosses an episode end or the sequence end (common.nstep_targets).")
     lr_end_scale: float = documented(1.0,
@@ -281,12 +290,14 @@ _AUTO_PER_ENV = (("replay", "buffer_size", AUTO_STEPS_PER_ENV, "{per} steps x {n
 
 
 def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = None) -> dict:
-    """Replaces `env.num_envs: auto`, `replay.buffer_size: auto` and `train.log_every: auto` by the
-    sizes for `backend` (AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV, AUTO_ITERS_PER_CHUNK); returns a new dict."""
+    """Replaces `env.num_envs: auto`, `replay.buffer_size: auto`, `train.log_every: auto` and
+    `agent.critic_dtype: auto` by the values for `backend` (AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV,
+    AUTO_ITERS_PER_CHUNK, AUTO_CRITIC_DTYPE); returns a new dict."""
     def is_auto(sec: str, key: str) -> bool:
         return isinstance(raw.get(sec), dict) and raw[sec].get(key) == "auto"
 
-    if not any(is_auto(sec, key) for sec, key in [("env", "num_envs")] + [a[:2] for a in _AUTO_PER_ENV]):
+    if not any(is_auto(sec, key) for sec, key in [("env", "num_envs"), ("agent", "critic_dtype")]
+               + [a[:2] for a in _AUTO_PER_ENV]):
         return raw
     if backend is None:
         import jax
@@ -297,6 +308,10 @@ def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = Non
         out["env"]["num_envs"] = AUTO_NUM_ENVS[kind]
         if notes is not None:
             notes.append(f"env.num_envs auto -> {AUTO_NUM_ENVS[kind]:,} ({backend})")
+    if is_auto("agent", "critic_dtype"):
+        out["agent"]["critic_dtype"] = AUTO_CRITIC_DTYPE[kind]
+        if notes is not None:
+            notes.append(f"agent.critic_dtype auto -> {AUTO_CRITIC_DTYPE[kind]} ({backend})")
     # The per-env sizes are multiples of num_envs, so a bad num_envs is reported here, by its own name,
     # rather than as an unresolvable 'auto' below.
     num_envs = _coerce("env.num_envs", out.get("env", {}).get("num_envs", EnvConfig.num_envs), int, None)

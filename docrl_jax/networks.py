@@ -11,7 +11,7 @@ through unchanged. Critics return one Q-value per critic head, stacked on axis 0
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Sequence
 
 import flax.linen as nn
 import jax
@@ -67,18 +67,20 @@ class MLPActor(nn.Module):
 
 class QNetwork(nn.Module):
     """One Q-network on concat(obs, action): hidden ReLU layers (each optionally LayerNorm'd before
-    the ReLU) -> one value."""
+    the ReLU) -> one float32 value. `dtype` is the activations' dtype; parameters stay float32, and
+    LayerNorm's statistics are reduced in float32 whatever the dtype."""
     hidden: Sequence[int]
     layer_norm: bool = False
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, x):
         for i, width in enumerate(self.hidden):
-            x = nn.Dense(width, name=f"dense_{i}")(x)
+            x = nn.Dense(width, dtype=self.dtype, name=f"dense_{i}")(x)
             if self.layer_norm:
-                x = nn.LayerNorm(name=f"norm_{i}")(x)
+                x = nn.LayerNorm(dtype=self.dtype, name=f"norm_{i}")(x)
             x = nn.relu(x)
-        return nn.Dense(1, name="out")(x)[..., 0]
+        return nn.Dense(1, dtype=self.dtype, name="out")(x)[..., 0].astype(jnp.float32)
 
 
 class Critic(nn.Module):
@@ -92,19 +94,34 @@ class Critic(nn.Module):
     hidden: Sequence[int]
     num: int = 2
     layer_norm: bool = False
+    dtype: Any = jnp.float32
 
     @nn.compact
     def __call__(self, obs, action):
         x = jnp.concatenate([obs, action], axis=-1)
         ensemble = nn.vmap(QNetwork, variable_axes={"params": 0}, split_rngs={"params": True},
                            in_axes=None, out_axes=0, axis_size=self.num)
-        return ensemble(tuple(self.hidden), self.layer_norm, name="q")(x)
+        return ensemble(tuple(self.hidden), self.layer_norm, self.dtype, name="q")(x)
+
+    @nn.nowrap
+    def head(self, params, obs, action, index: int = 0):
+        """Q of head `index` alone (what `apply(...)[index]` returns) without computing the others:
+        the TD3 actor loss reads only the first critic."""
+        one = jax.tree.map(lambda p: p[index], params["params"]["q"])
+        return QNetwork(tuple(self.hidden), self.layer_norm, self.dtype).apply(
+            {"params": one}, jnp.concatenate([obs, action], axis=-1))
 
 
 def make_actor(kind: str, hidden: Sequence[int], stochastic: bool) -> nn.Module:
     if kind == "lstm":
         return LSTMActor(units=hidden[0], stochastic=stochastic)
     return MLPActor(hidden=tuple(hidden), stochastic=stochastic)
+
+
+def make_critic(agent_config, num: int) -> Critic:
+    """The `num`-headed critic an agent config describes (sizes, LayerNorm, activation dtype)."""
+    return Critic(hidden=tuple(agent_config.critic_hidden), num=num, layer_norm=agent_config.critic_layer_norm,
+                  dtype=jnp.dtype(agent_config.critic_dtype))
 
 
 def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = True):

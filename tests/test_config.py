@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import pytest
 import yaml
 
@@ -31,6 +32,9 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         assert c.agent.actor_lr == c.agent.critic_lr == 2e-3 and c.replay.batch_size == 1024
         assert c.agent.n_step == 5 and c.agent.policy_average_tau == 0.001 and c.agent.critic_layer_norm
         assert c.agent.lr_end_scale == 0.1 and c.agent.tau == 0.02
+        # bf16 critics: measured for td3_lstm only (BENCHMARKS.md, "What an update costs")
+        assert c.agent.critic_dtype == ("bfloat16" if name == "td3_lstm" and jax.default_backend() != "cpu"
+                                        else "float32")
         # training starts near the risers (the paper's W-A start is 1.05 m from one): measured for the LSTM agents only
         assert dict(c.env.overrides).get("goal_clearance", 1.0) == (0.6 if name.endswith("_lstm") else 1.0)
 
@@ -60,6 +64,11 @@ def test_auto_sizes_resolve_per_backend_and_say_so():
     cpu = config_from_dict(raw, backend="cpu")
     assert cpu.env.num_envs == 64 and cpu.replay.buffer_size == 64 * cfg.AUTO_STEPS_PER_ENV["cpu"]
     assert cpu.train.log_every == 64 * cfg.AUTO_ITERS_PER_CHUNK["cpu"]  # a progress line within a minute
+    # bf16 critics where they were measured faster (an H100), float32 where bf16 is emulated (a CPU)
+    assert (gpu.agent.critic_dtype, cpu.agent.critic_dtype) == ("bfloat16", "float32")
+    assert any("critic_dtype auto -> bfloat16" in n for n in notes)
+    with pytest.raises(ConfigError, match="critic_dtype.*bfloat16"):
+        load_config("td3_lstm", ["agent.critic_dtype=float16"])
     # An explicit size wins over auto, and a bad word names the choices.
     assert load_config("td3_lstm", ["env.num_envs=32"]).env.num_envs == 32
     with pytest.raises(ConfigError, match="num_envs"):

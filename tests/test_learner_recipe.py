@@ -9,10 +9,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import yaml
 
 from docrl_jax.algorithms import make_agent
 from docrl_jax.algorithms.common import adam, apply_gradients, lr_scale, nstep_targets
-from docrl_jax.config import ConfigError, config_from_dict
+from docrl_jax.config import ConfigError, config_from_dict, packaged_configs_dir
 from docrl_jax.networks import Critic
 
 
@@ -64,8 +65,9 @@ def test_nstep_by_hand_on_one_episode_boundary():
     np.testing.assert_allclose(y, [2.0, 2.0, 15.0, 24.0])
 
 
-def test_layer_norm_critic_ensemble_matches_numpy():
-    critic = Critic(hidden=(7, 5), num=2, layer_norm=True)
+@pytest.mark.parametrize("dtype, tol", [(jnp.float32, 1e-4), (jnp.bfloat16, 3e-2)])
+def test_layer_norm_critic_ensemble_matches_numpy(dtype, tol):
+    critic = Critic(hidden=(7, 5), num=2, layer_norm=True, dtype=dtype)
     obs, act = jax.random.normal(jax.random.PRNGKey(0), (4, 26)), jax.random.normal(jax.random.PRNGKey(1), (4, 3))
     params = critic.init(jax.random.PRNGKey(2), obs, act)
     # Non-trivial LayerNorm scales and offsets, so a skipped or misplaced norm shows.
@@ -73,7 +75,8 @@ def test_layer_norm_critic_ensemble_matches_numpy():
         lambda path, x: x + 0.3 * jax.random.normal(jax.random.PRNGKey(len(str(path))), x.shape)
         if "norm" in str(path) else x, params)
     q = np.asarray(critic.apply(params, obs, act))
-    assert q.shape == (2, 4)
+    assert q.shape == (2, 4) and q.dtype == np.float32
+    assert all(x.dtype == jnp.float32 for x in jax.tree.leaves(params))  # bf16 activations, fp32 parameters
     p = jax.tree.map(np.asarray, params)["params"]["q"]
     x0 = np.concatenate([np.asarray(obs), np.asarray(act)], -1)
     for head in range(2):
@@ -84,8 +87,32 @@ def test_layer_norm_critic_ensemble_matches_numpy():
             x = (x - mu) / np.sqrt(var + 1e-6) * p[f"norm_{i}"]["scale"][head] + p[f"norm_{i}"]["bias"][head]
             x = np.maximum(x, 0.0)
         want = (x @ p["out"]["kernel"][head] + p["out"]["bias"][head])[:, 0]
-        np.testing.assert_allclose(q[head], want, rtol=1e-4, atol=1e-5)
+        np.testing.assert_allclose(q[head], want, rtol=tol, atol=tol / 10)
+        # one head alone (the TD3 actor loss) is exactly that head of the ensemble
+        np.testing.assert_array_equal(np.asarray(critic.head(params, obs, act, head)), q[head])
     assert not np.allclose(q[0], q[1])  # independent heads
+
+
+def test_the_default_td3_recipe_trains_bf16_critics_and_keeps_fp32_state():
+    """td3_lstm's critics run in bfloat16 on a GPU (agent.critic_dtype auto, resolved here for a GPU
+    and traced on the CPU); parameters, targets and losses stay float32, and the paper config keeps
+    float32 throughout."""
+    def dots(name):
+        c = config_from_dict(yaml.safe_load((packaged_configs_dir() / f"{name}.yaml").read_text()),
+                             {"env.num_envs": 2, "replay.buffer_size": 64, "replay.batch_size": 4}, backend="gpu")
+        agent = make_agent(c)
+        state = agent.init(jax.random.PRNGKey(0))
+        B, L = c.replay.batch_size, c.replay.seq_len
+        batch = {"obs": jnp.zeros((B, L, 26)), "action": jnp.zeros((B, L, 3)), "reward": jnp.zeros((B, L)),
+                 "next_obs": jnp.zeros((B, L, 26)), "terminated": jnp.zeros((B, L), bool),
+                 "truncated": jnp.zeros((B, L), bool), "start": jnp.zeros((B, L), bool), "mask": jnp.ones((B, L), bool),
+                 "carry": agent.actor.init_carry((B, L))}
+        out = jax.eval_shape(agent.update, state, batch, jax.random.PRNGKey(1), jnp.float32(0.5))
+        assert all(x.dtype in (jnp.float32, jnp.int32) for x in jax.tree.leaves(out))
+        text = str(jax.make_jaxpr(agent.update)(state, batch, jax.random.PRNGKey(1), jnp.float32(0.5)))
+        return text.count("bf16[")
+    assert dots("td3_lstm") > 0
+    assert dots("td3_lstm_paper") == 0
 
 
 def test_learning_rate_decays_linearly_and_scales_adams_step():

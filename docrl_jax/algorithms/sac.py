@@ -23,7 +23,7 @@ from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, a
                                          nstep_targets, policy_freq, run_actor, soft_update, split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
-from docrl_jax.networks import Critic, make_actor
+from docrl_jax.networks import make_actor, make_critic
 
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -63,7 +63,7 @@ def alpha_loss(log_alpha, logp, target_entropy, mask):
 def make_sac(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=True)
-    critic = Critic(hidden=a_cfg.critic_hidden, num=2, layer_norm=a_cfg.critic_layer_norm)
+    critic = make_critic(a_cfg, num=2)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = alpha_tx = adam(1.0)
     burn_in = config.replay.burn_in

@@ -22,7 +22,7 @@ from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, a
                                          nstep_targets, policy_freq, run_actor, soft_update, split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
-from docrl_jax.networks import Critic, make_actor
+from docrl_jax.networks import make_actor, make_critic
 
 
 def target_values(critic, critic_target_params, next_action, seq: SeqBatch, noise, a_cfg, hp=None):
@@ -50,14 +50,14 @@ def _target_next_action(actor, params, seq: SeqBatch, memory):
 
 def actor_loss(actor_params, actor, critic, critic_params, seq: SeqBatch, memory):
     action, _ = run_actor(actor, actor_params, seq, memory)
-    return -masked_mean(critic.apply(critic_params, seq.obs, action)[0], seq.mask)
+    return -masked_mean(critic.head(critic_params, seq.obs, action, 0), seq.mask)
 
 
 def make_td3(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
     ddpg = a_cfg.algo == "ddpg"
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=False)
-    critic = Critic(hidden=a_cfg.critic_hidden, num=1 if ddpg else 2, layer_norm=a_cfg.critic_layer_norm)
+    critic = make_critic(a_cfg, num=1 if ddpg else 2)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = adam(1.0)
     burn_in = config.replay.burn_in
