@@ -49,11 +49,10 @@ DEFAULT_VARIANTS = (
 )
 
 
-def random_batch(config, key) -> dict:
+def random_batch(config, agent, key) -> dict:
     """A batch shaped as `SequenceBuffer.sample` returns it: [batch, seq_len, ...]."""
     b, l = config.replay.batch_size, config.replay.seq_len
     ks = jax.random.split(key, 6)
-    agent = make_agent(config)
     carry = jax.tree.map(lambda z: 0.1 * jax.random.normal(ks[5], z.shape), agent.actor.init_carry((b, l)))
     start = jax.random.uniform(ks[3], (b, l)) < 0.01
     return {"obs": jax.random.normal(ks[0], (b, l, OBS_SIZE)),
@@ -70,7 +69,7 @@ def measure(config_name: str, variant: str, updates: int, repeats: int, progress
     agent = make_agent(config)
     key = jax.random.PRNGKey(0)
     state = jax.jit(agent.init)(key)
-    batch = jax.jit(lambda k: random_batch(config, k))(key)
+    batch = jax.jit(lambda k: random_batch(config, agent, k))(key)
 
     def run(state, batch, key):
         def one(s, k):

@@ -113,6 +113,7 @@ def iteration(config_name: str, iters: int) -> tuple[list[dict], dict]:
     import jax.numpy as jnp
     from docrl_jax.algorithms import td3
     from docrl_jax.algorithms.common import split_batch
+    from docrl_jax.networks import make_critic
     from docrl_jax.config import load_config
     from docrl_jax.replay import make_sequence_buffer
     from docrl_jax.train.trainer import _buffer_step, make_trainer
@@ -149,7 +150,7 @@ def iteration(config_name: str, iters: int) -> tuple[list[dict], dict]:
         "update")
     batch = buffer.sample(buf, key)
     if a_cfg.algo in ("td3", "ddpg"):
-        critic = agent_critic(config)
+        critic = make_critic(config.agent)
         seq = split_batch(batch, r.burn_in)
         noise = jax.random.normal(key, seq.action.shape)
         critic_grad = jax.grad(lambda p: td3.critic_loss(p, critic, agent.actor, rs.agent, seq, noise, a_cfg,
@@ -190,11 +191,6 @@ def _touch(tree):
     import jax.numpy as jnp
     total = sum(jnp.sum(x.astype(jnp.float32)) for x in jax.tree.leaves(tree))
     return (total > 3e38).astype(jnp.uint32)
-
-
-def agent_critic(config):
-    from docrl_jax.networks import make_critic
-    return make_critic(config.agent, num=1 if config.agent.algo == "ddpg" else 2)
 
 
 # ------------------------------------------------------------------ parent

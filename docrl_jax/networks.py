@@ -118,10 +118,11 @@ def make_actor(kind: str, hidden: Sequence[int], stochastic: bool) -> nn.Module:
     return MLPActor(hidden=tuple(hidden), stochastic=stochastic)
 
 
-def make_critic(agent_config, num: int) -> Critic:
-    """The `num`-headed critic an agent config describes (sizes, LayerNorm, activation dtype)."""
-    return Critic(hidden=tuple(agent_config.critic_hidden), num=num, layer_norm=agent_config.critic_layer_norm,
-                  dtype=jnp.dtype(agent_config.critic_dtype))
+def make_critic(agent_config) -> Critic:
+    """The critic an agent config describes: two heads (TD3, SAC), or one for DDPG (the paper's
+    "Det." row); sizes, LayerNorm and activation dtype."""
+    return Critic(hidden=tuple(agent_config.critic_hidden), num=1 if agent_config.algo == "ddpg" else 2,
+                  layer_norm=agent_config.critic_layer_norm, dtype=jnp.dtype(agent_config.critic_dtype))
 
 
 def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = True):

@@ -63,7 +63,7 @@ def alpha_loss(log_alpha, logp, target_entropy, mask):
 def make_sac(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=True)
-    critic = make_critic(a_cfg, num=2)
+    critic = make_critic(a_cfg)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = alpha_tx = adam(1.0)
     burn_in = config.replay.burn_in

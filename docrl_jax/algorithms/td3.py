@@ -57,7 +57,7 @@ def make_td3(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
     ddpg = a_cfg.algo == "ddpg"
     actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=False)
-    critic = make_critic(a_cfg, num=1 if ddpg else 2)
+    critic = make_critic(a_cfg)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = adam(1.0)
     burn_in = config.replay.burn_in
