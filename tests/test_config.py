@@ -35,6 +35,11 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         # bf16 critics: measured for td3_lstm only (BENCHMARKS.md, "What an update costs")
         assert c.agent.critic_dtype == ("bfloat16" if name == "td3_lstm" and jax.default_backend() != "cpu"
                                         else "float32")
+        # 8 updates per vectorised step over half the env steps: measured for td3_lstm only (BENCHMARKS.md,
+        # "Learner lever 2"); the run's update count, hence its schedules, stays that of 4 over 50 M
+        t = c.train
+        assert (t.updates_per_step, t.total_env_steps) == ((8, 25_000_000) if name == "td3_lstm" else (4, 50_000_000))
+        assert t.updates_per_step * t.total_env_steps == 200_000_000
         # training starts near the risers (the paper's W-A start is 1.05 m from one): measured for the LSTM agents only
         assert dict(c.env.overrides).get("goal_clearance", 1.0) == (0.6 if name.endswith("_lstm") else 1.0)
 

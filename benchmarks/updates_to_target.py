@@ -1,0 +1,73 @@
+"""Env steps and gradient updates each seed of a run needed to reach a success target in both paper
+directions, read from the run's metrics.csv: a sample-efficiency figure that, unlike wall-clock time,
+many seeds can share one GPU for (`train.num_seeds=8` trains eight seeds vmapped in one program).
+
+    python benchmarks/updates_to_target.py RUN_DIR [RUN_DIR ...] [--target 0.9]
+
+A seed that had not reached the target by the run's last evaluation is censored: it counts as
+"above the last evaluated step" (the median is then a lower bound when half or more are censored).
+Time to target on one GPU is about updates x (one iteration's wall time / updates per iteration),
+plus start-up and evaluations; measure it directly with time_to_success.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections import defaultdict
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from time_to_success import reached, read_rows  # noqa: E402
+
+
+def per_seed(run_dir: str, target: float) -> tuple[dict, int, int]:
+    """{seed: (env steps, gradient updates) at the first evaluation at target, or None}, and the
+    last evaluated env steps and updates."""
+    rows = read_rows(os.path.join(run_dir, "metrics.csv"))
+    if not rows:
+        raise SystemExit(f"{run_dir}: no metrics.csv rows")
+    by_seed = defaultdict(list)
+    for r in rows:
+        by_seed[r["seed"]].append(r)
+    out = {}
+    for seed, seed_rows in sorted(by_seed.items(), key=lambda kv: int(kv[0])):
+        hit = reached(seed_rows, target)
+        out[int(seed)] = None if hit is None else (int(float(hit["env_steps"])), int(float(hit["grad_updates"])))
+    last = rows[-1]
+    return out, int(float(last["env_steps"])), int(float(last["grad_updates"]))
+
+
+def median_text(values: list[int], censored: int, last: int) -> str:
+    """The median of the seeds' values with the censored seeds counted above `last`."""
+    ranked = sorted(values) + [None] * censored
+    n = len(ranked)
+    mid = ranked[(n - 1) // 2], ranked[n // 2]
+    if None in mid:
+        return f"> {last:,}" if mid[0] is None else f">= {mid[0]:,}"
+    return f"{(mid[0] + mid[1]) / 2:,.0f}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("run_dirs", nargs="+")
+    ap.add_argument("--target", type=float, default=0.9)
+    args = ap.parse_args(argv)
+    print(f"| run | seeds at {args.target:.0%} | env steps, per seed | median env steps | gradient updates, per seed "
+          "| median updates |")
+    print("|---|---|---|---|---|---|")
+    for run_dir in args.run_dirs:
+        seeds, last_steps, last_updates = per_seed(run_dir, args.target)
+        hits = [v for v in seeds.values() if v is not None]
+        censored = len(seeds) - len(hits)
+        steps = sorted(h[0] for h in hits)
+        updates = sorted(h[1] for h in hits)
+        more = f", {censored} > last" if censored else ""
+        print(f"| {os.path.basename(os.path.normpath(run_dir))} | {len(hits)}/{len(seeds)} "
+              f"| {', '.join(f'{s / 1e6:.1f} M' for s in steps)}{more} | {median_text(steps, censored, last_steps)} "
+              f"| {', '.join(f'{u:,}' for u in updates)}{more} | {median_text(updates, censored, last_updates)} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
