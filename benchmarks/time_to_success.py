@@ -107,6 +107,7 @@ def run_seed(args, seed: int, cache_dir: str | None, out_dir: str, tag: str) -> 
     return {"seed": seed, "run_dir": run_dir, "trainer_command": " ".join(cmd), "stop_reason": stop_reason,
             "reached": hit is not None, "time_to_target_s": round(hit_time, 1) if hit_time else None,
             "env_steps_at_target": int(float(hit["env_steps"])) if hit else None,
+            "updates_at_target": int(float(hit["grad_updates"])) if hit else None,
             "trainer_wall_at_target_s": float(hit["wall_time_s"]) if hit else None,
             "first_eval_s": round(first_eval_s, 1) if first_eval_s else None,
             "elapsed_s": round(elapsed, 1), "best_success": best, "final": final,
@@ -160,11 +161,12 @@ def main(argv=None) -> int:
     lines = [f"# Time to {args.target:.0%} in both directions: {tag} ({meta['gpu']}, {meta['date']})", "",
              f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}  ",
              f"Compilation cache: {args.compile_cache}", "",
-             "| seed | time to target (s) | env steps | first eval (s) | best A-W / W-A | final A-W / W-A | "
-             "launch to stop (s) | stop |", "|---|---|---|---|---|---|---|---|"]
+             "| seed | time to target (s) | env steps | gradient updates | first eval (s) | best A-W / W-A | "
+             "final A-W / W-A | launch to stop (s) | stop |", "|---|---|---|---|---|---|---|---|---|"]
+    dash = lambda v: "–" if v is None else v  # noqa: E731  (0 is a value: a target met at step 0)
     for r in results:
         lines.append(f"| {r['seed']} | {r['time_to_target_s'] if r['reached'] else '–'} | "
-                     f"{r['env_steps_at_target'] or '–'} | {r['first_eval_s']} | "
+                     f"{dash(r['env_steps_at_target'])} | {dash(r['updates_at_target'])} | {r['first_eval_s']} | "
                      f"{r['best_success']['air_to_water']:.2f} / {r['best_success']['water_to_air']:.2f} | "
                      f"{r['final']['air_to_water']} / {r['final']['water_to_air']} | {r['elapsed_s']} | "
                      f"{r['stop_reason']} |")
