@@ -56,6 +56,7 @@ except ImportError as err:  # the core package works without gymnasium; this mod
 
 import docrl_jax.envs as envs
 from docrl_jax.envs.huauv import ACTION_SIZE, OBS_LAYOUT, OBS_SIZE
+from docrl_jax.envs.wrappers import reset_key
 
 ENV_ID = "docrl_jax/HUAUV-v0"
 RENDER_MODES = ["rgb_array"]
@@ -98,10 +99,11 @@ def _programs(scenario: int, overrides: dict[str, Any], compiler_options: dict[s
         info = stepped.info
         terminated = info["terminated"] | (info["arrived"] & on_arrival)
         truncated = stepped.done & ~terminated          # only our step limit is left
-        # SAME_STEP auto-reset. An episode that goes on keeps our step's own key, so every episode
-        # is exactly our env's reset(key) + step sequence; a new episode's reset key is drawn from
-        # the ended episode's key (under vmap both branches run and `where` picks one per env).
-        fresh = env.reset(jax.random.split(stepped.sim.key)[1])
+        # SAME_STEP auto-reset, with our AutoResetWrapper's keys: an episode that goes on keeps our
+        # step's own key, so every episode is exactly our env's reset(key) + step sequence; a new
+        # episode's reset key is drawn from the ended episode's key (under vmap both branches run and
+        # `where` picks one per env).
+        fresh = env.reset(reset_key(stepped))
         nxt = jax.tree.map(lambda f, s: jnp.where(stepped.done, f, s), fresh, stepped)
         out = {"obs": nxt.obs, "reward": stepped.reward, "terminated": terminated, "truncated": truncated,
                "info": nxt.info}

@@ -171,6 +171,44 @@ def test_jit_vmap_64_envs_long_random_rollouts_with_resets_stay_finite():
     assert np.all(st[1:][d[:-1]] == 1)
 
 
+def test_auto_reset_runs_each_episode_as_the_env_itself_until_it_ends():
+    """Under AutoResetWrapper an episode that goes on keeps the env's own key stream (wind gusts and
+    range noise included), so it is step for step the unwrapped env's episode from the same start,
+    reset_to included; the evaluation lanes of the trainer rely on it. After a done the wrapped env
+    starts a new episode from `reset_key` of the ended one."""
+    plain = envs.make(2, sensor_noise_std=0.05, wind_sigma=0.3)
+    wrapped = envs.make(2, auto_reset=True, sensor_noise_std=0.05, wind_sigma=0.3)
+    # Random turns and speeds while diving: each episode ends out of bounds (or on an obstacle) in time.
+    acts = jax.random.uniform(jax.random.PRNGKey(4), (100, 3), minval=-1, maxval=1).at[:, 1].set(-1.0)
+    start, goal = jnp.array([0.0, 0.0, 2.5]), jnp.array([3.6, -2.4, -1.0])
+    assert set(wrapped.reset_to(jax.random.PRNGKey(5), start, 0.3, goal).info) == set(
+        wrapped.reset(jax.random.PRNGKey(5)).info)   # reset_to in the wrapper's own layout
+    # Two episodes: a random reset and the paper's A-W start.
+    first = jax.tree.map(lambda *x: jnp.stack(x), plain.reset(jax.random.PRNGKey(6)),
+                         plain.reset_to(jax.random.PRNGKey(5), start, 0.3, goal))
+
+    def run(env, state):  # (time, episode) stacked states
+        return jax.lax.scan(lambda s, a: (jax.vmap(env.step, (0, None))(s, a),) * 2, state, acts)[1]
+    ref = jax.jit(run, static_argnums=0)(plain, first)
+    got = jax.jit(run, static_argnums=0)(wrapped, first.replace(info={**first.info, "final_obs": first.obs}))
+    ended = 0
+    for i in range(2):
+        one = lambda tree: jax.tree.map(lambda x: np.asarray(x[:, i]), tree)  # noqa: E731
+        r, g = one(ref), one(got)
+        end = int(np.argmax(r.done)) if r.done.any() else len(r.done) - 1
+        np.testing.assert_array_equal(g.reward[:end + 1], r.reward[:end + 1])
+        np.testing.assert_array_equal(g.done[:end + 1], r.done[:end + 1])
+        # The same draws (exact keys), the same floats up to XLA's fusion of two programs (an ulp).
+        np.testing.assert_array_equal(g.sim.key[:end], r.sim.key[:end])
+        np.testing.assert_allclose(g.info["final_obs"][:end + 1], r.obs[:end + 1], atol=1e-6)
+        np.testing.assert_allclose(g.sim.wind[:end], r.sim.wind[:end], atol=1e-6)
+        if r.done.any():   # then a fresh episode from the ended one's reset key
+            ended += 1
+            fresh = plain.reset(envs.wrappers.reset_key(jax.tree.map(lambda x: x[end], r)))
+            np.testing.assert_allclose(g.obs[end], np.asarray(fresh.obs), atol=1e-6)
+    assert ended == 2
+
+
 @pytest.mark.parametrize("shape", [(2,), (5,), (4, 3), ()])
 def test_step_refuses_an_action_that_is_not_one_envs(env_fns, shape):
     env, reset_to, _ = env_fns(1, wind=False)
