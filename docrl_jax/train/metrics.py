@@ -143,7 +143,8 @@ def log_chunk(writer, m: dict, env_steps: int, sps: float) -> None:
         if k in m and float(np.sum(m["learn_iters"])):
             writer.add_scalar(f"train/{k}", float(np.mean(m[k])), env_steps)
     writer.add_scalar("train/env_steps_per_s", sps, env_steps)
-    writer.add_scalar("train/grad_updates_in_chunk", float(np.mean(m["updates"])), env_steps)
+    if "updates" in m:  # absent with train.updates_per_step 0
+        writer.add_scalar("train/grad_updates_in_chunk", float(np.mean(m["updates"])), env_steps)
 
 
 def eval_success(rows: list[dict]) -> float:
@@ -155,10 +156,10 @@ def stats_line(m: dict, last_eval_success: float) -> str:
     eps = float(np.sum(m["episodes"]))
     ret = f"{float(np.sum(m['return_sum'])) / eps:.1f}" if eps else "n/a"
     succ = f"{float(np.sum(m['success_sum'])) / eps:.2f}" if eps else "n/a"
-    parts = [f"train return {ret}", f"train success {succ}", f"eval success {last_eval_success:.2f}",
-             f"critic {float(np.mean(m['critic_loss'])):.3g}", f"actor {float(np.mean(m['actor_loss'])):.3g}"]
-    if "alpha" in m:
-        parts.append(f"alpha {float(np.mean(m['alpha'])):.3g}")
+    parts = [f"train return {ret}", f"train success {succ}", f"eval success {last_eval_success:.2f}"]
+    for name, k in (("critic", "critic_loss"), ("actor", "actor_loss"), ("alpha", "alpha")):
+        if k in m:  # the losses are absent with train.updates_per_step 0
+            parts.append(f"{name} {float(np.mean(m[k])):.3g}")
     return "  ".join(parts)
 
 
