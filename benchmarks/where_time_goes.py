@@ -52,6 +52,7 @@ def startup(config_name: str, cache: str) -> list[dict]:
     import docrl_jax.train.cli  # noqa: F401  (flax, optax, orbax, rich, tensorboardX...)
     from docrl_jax.config import load_config
     from docrl_jax.train import programs
+    from docrl_jax.train.evaluation import eval_keys
     from docrl_jax.train.trainer import make_trainer
     t = _mark(marks, "import the rest of the train command (flax, optax, orbax, rich)", t)
     programs.enable_compile_cache(cache)
@@ -62,15 +63,18 @@ def startup(config_name: str, cache: str) -> list[dict]:
     trainer = make_trainer(programs.program_config(config))
     t = _mark(marks, "make_trainer (MJCF parse, MJX model, env's first forward)", t)
     import jax.numpy as jnp
-    init, chunk, evaluate = programs._jitted(programs.program_config(config), (devices[0],), False)
+    init, chunk, evaluate, eval_starts = programs._jitted(programs.program_config(config), (devices[0],), False)
     n = config.train.num_seeds
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)
     state_shape = jax.eval_shape(init, keys, total)
     t = _mark(marks, "runner state shapes (eval_shape of init)", t)
     compiled = {}
-    for name, fn, args in (("init", init, (keys, total)), ("chunk", chunk, (state_shape,)),
-                           ("evaluate", evaluate, (state_shape.agent.actor_average, keys))):
+    phases = [("init", init, (keys, total)), ("chunk", chunk, (state_shape,)),
+              ("evaluate", evaluate, (state_shape.agent.actor_average, keys))]
+    if eval_starts is not None:  # train.eval_alongside
+        phases.append(("eval_starts", eval_starts, (keys,)))
+    for name, fn, args in phases:
         traced = fn.trace(*args)
         t = _mark(marks, f"{name}: trace", t)
         lowered = traced.lower()
@@ -80,7 +84,7 @@ def startup(config_name: str, cache: str) -> list[dict]:
     seed_keys = jnp.stack([jax.random.PRNGKey(s) for s in range(n)])
     state = jax.block_until_ready(compiled["init"](seed_keys, jnp.int32(trainer.total_env_steps)))
     t = _mark(marks, "run init (envs reset, empty buffer on the device)", t)
-    jax.block_until_ready(compiled["evaluate"](state.agent.actor_average, programs.eval_keys(list(range(n)), 0)))
+    jax.block_until_ready(compiled["evaluate"](state.agent.actor_average, eval_keys(list(range(n)), 0)))
     t = _mark(marks, "first evaluation (the paper's pairs, 100 episodes each)", t)
     state, m = compiled["chunk"](state)
     jax.block_until_ready(m)
@@ -138,11 +142,15 @@ def iteration(config_name: str, iters: int) -> tuple[list[dict], dict]:
 
     nudge = lambda tree, g: jax.tree.map(lambda p, d: p + 1e-9 * d, tree, g)  # noqa: E731
     actions = jnp.zeros((n, 3))
-    add(f"env step ({n:,} envs)", _per_rep(lambda s: jax.vmap(env.step)(s, actions), rs.env, iters, calls))
+    lanes = rs.env.obs.shape[0]   # the training envs, then the evaluation's lanes (train.eval_alongside)
+    obs = rs.env.obs[:n]
+    stepped = f"{lanes:,} envs" + (f": {n:,} training + {lanes - n} evaluation lanes" if lanes > n else "")
+    add(f"env step ({stepped})",
+        _per_rep(lambda s: jax.vmap(env.step)(s, jnp.zeros((lanes, 3))), rs.env, iters, calls))
     add("act: actor + exploration noise",
-        _per_rep(lambda c: agent.explore(rs.agent, c[0], c[1], rs.env.obs + 1e-9 * c[2][:, :1], rs.start, key,
+        _per_rep(lambda c: agent.explore(rs.agent, c[0], c[1], obs + 1e-9 * c[2][:, :1], rs.start, key,
                                          progress), (rs.carry, rs.noise, actions), iters, calls))
-    example = _buffer_step(rs.env.obs, actions, rs.ep_return, rs.env.obs, rs.start, rs.start, rs.start, rs.carry)
+    example = _buffer_step(obs, actions, rs.ep_return, obs, rs.start, rs.start, rs.start, rs.carry)
     add("replay insert", _per_rep(lambda b: buffer.add(b, example), rs.buffer, iters, calls))
     buf = rs.buffer
     add(f"sample one batch ({r.batch_size:,} x {r.seq_len})",

@@ -155,7 +155,8 @@ class TrainConfig:
                                           "waited for 1,024 transitions).")
     updates_per_step: int = documented(4, "Gradient updates after each vectorised env step (num_envs transitions). "
                                           "Update-to-data ratio = updates_per_step / num_envs updates per transition "
-                                          "(orig: 1 env, 1 update per step).")
+                                          "(orig: 1 env, 1 update per step). 0 = none: the policy stays as "
+                                          "initialised (env-only throughput, or a fixed policy's evaluations).")
     log_every: int = documented(20_000, "Env steps per compiled chunk: Python logs, checks losses and may evaluate "
                                         "or checkpoint only between chunks (a Ctrl-C waits for the chunk to end). "
                                         f"'auto' = num_envs x {AUTO_ITERS_PER_CHUNK['gpu']} on a GPU/TPU, num_envs x "
@@ -183,6 +184,17 @@ class TrainConfig:
     eval_trained_actor: bool = documented(False, "With agent.policy_average_tau < 1: also evaluate the trained (not "
                                                  "averaged) actor on the same episodes, columns trained_actor_* "
                                                  "(an ablation; doubles the evaluation time).")
+    eval_alongside: bool = documented(False,
+        "Run each periodic evaluation's episodes alongside training, as extra lanes of the chunk's "
+        "vectorised env step driven by a frozen copy of the policy, instead of pausing training for them "
+        "(on a GPU a pause of ~1 s per evaluation: its steps are latency-bound; alongside they cost a few "
+        "per cent of the chunks they span, docs/BENCHMARKS.md). Same episodes, same starts, same rows "
+        "(docrl_jax/train/evaluation.py); a row is written when its last episode has ended, up to "
+        "env.max_episode_steps iterations later, and an evaluation that falls due meanwhile waits for it. "
+        "The final evaluation, and one still running at a checkpoint or a stop, pause training as before. "
+        "'auto' = on for a GPU/TPU where it is possible, off on a CPU (where every lane costs its full "
+        "share of a step). Not possible with eval_trained_actor, nor when the paper pairs need an env of "
+        "their own (a procedural or domain-randomised run).")
     track_best_policy: bool = documented(True,
         "Keep each seed's best evaluated policy so far (by the paper pairs' weaker "
         "direction with eval_paper_pairs, else random-goal success; ties to the "
@@ -292,12 +304,13 @@ _AUTO_PER_ENV = (("replay", "buffer_size", AUTO_STEPS_PER_ENV, "{per} steps x {n
 def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = None) -> dict:
     """Replaces `env.num_envs: auto`, `replay.buffer_size: auto`, `train.log_every: auto` and
     `agent.critic_dtype: auto` by the values for `backend` (AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV,
-    AUTO_ITERS_PER_CHUNK, AUTO_CRITIC_DTYPE); returns a new dict."""
+    AUTO_ITERS_PER_CHUNK, AUTO_CRITIC_DTYPE), and `train.eval_alongside: auto` by true on a GPU/TPU,
+    false on a CPU; returns a new dict."""
     def is_auto(sec: str, key: str) -> bool:
         return isinstance(raw.get(sec), dict) and raw[sec].get(key) == "auto"
 
-    if not any(is_auto(sec, key) for sec, key in [("env", "num_envs"), ("agent", "critic_dtype")]
-               + [a[:2] for a in _AUTO_PER_ENV]):
+    if not any(is_auto(sec, key) for sec, key in [("env", "num_envs"), ("agent", "critic_dtype"),
+                                                  ("train", "eval_alongside")] + [a[:2] for a in _AUTO_PER_ENV]):
         return raw
     if backend is None:
         import jax
@@ -312,6 +325,8 @@ def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = Non
         out["agent"]["critic_dtype"] = AUTO_CRITIC_DTYPE[kind]
         if notes is not None:
             notes.append(f"agent.critic_dtype auto -> {AUTO_CRITIC_DTYPE[kind]} ({backend})")
+    if is_auto("train", "eval_alongside"):  # whether the rest of the config allows it: config_from_dict
+        out["train"]["eval_alongside"] = kind == "gpu"
     # The per-env sizes are multiples of num_envs, so a bad num_envs is reported here, by its own name,
     # rather than as an unresolvable 'auto' below.
     num_envs = _coerce("env.num_envs", out.get("env", {}).get("num_envs", EnvConfig.num_envs), int, None)
@@ -345,6 +360,7 @@ def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, source:
     unknown = sorted(set(raw) - {"name", *SECTIONS})
     if unknown:
         raise ConfigError(f"unknown top-level key(s) {unknown}; valid keys: {['name', *SECTIONS]}")
+    alongside_auto = isinstance(raw.get("train"), dict) and raw["train"].get("eval_alongside") == "auto"
     raw = resolve_auto(raw, backend, notes)
     name = _coerce("name", raw.get("name", Config.name), str, None)
     built = {}
@@ -354,6 +370,13 @@ def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, source:
             raise ConfigError(f"section {sec!r} must be a mapping, got {values!r}")
         built[sec] = _build_section(sec, cls, values)
     config = Config(name=name, **built)
+    if alongside_auto:  # resolve_auto chose by backend; the rest of the config may rule it out
+        why = alongside_blocker(config) if config.train.eval_alongside else "off on a CPU"
+        if config.train.eval_alongside and why:
+            config = dataclasses.replace(config, train=dataclasses.replace(config.train, eval_alongside=False))
+        if notes is not None:
+            notes.append(f"train.eval_alongside auto -> {str(config.train.eval_alongside).lower()}"
+                         + (f" ({why})" if why else ""))
     validate(config)
     return config
 
@@ -390,7 +413,8 @@ def _coerce(key: str, value: Any, typ: Any, choices: tuple | None) -> Any:
     '3e-4' (which YAML 1.1 reads as text) are accepted for floats when they parse as numbers."""
     if typ is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"{key}={value!r}: must be a bool (true or false)")
+            also = " or 'auto'" if key == "train.eval_alongside" else ""
+            raise ConfigError(f"{key}={value!r}: must be a bool (true or false){also}")
     elif typ is int:
         if key == "train.devices":
             if value == "all":
@@ -501,6 +525,8 @@ def validate(c: Config) -> Config:
         _bad("agent.ou_theta", a.ou_theta, "must be in [0, 1] (mean reversion per step)")
     if a.init_alpha <= 0:
         _bad("agent.init_alpha", a.init_alpha, "must be > 0")
+    if t.eval_alongside and (why := alongside_blocker(c)):
+        _bad("train.eval_alongside", True, f"not possible here: {why}; set it false (or auto)")
     if a.algo == "ddpg":
         if a.policy_noise != 0.0:
             _bad("agent.policy_noise", a.policy_noise, "ddpg has no target-policy smoothing; set 0 or use algo td3")
@@ -545,6 +571,25 @@ def pair_scenario(c: Config) -> int:
 def nominal_env_kwargs(c: Config) -> dict[str, Any]:
     """`env_kwargs` without the domain randomisation (`dr_*`): the nominal plant of the paper's test."""
     return {k: v for k, v in env_kwargs(c).items() if not k.startswith("dr_")}
+
+
+def pairs_own_env(c: Config) -> bool:
+    """Whether the paper-pair evaluation needs an env of its own: the pairs run and their scenario or
+    plant differs from the training env's (a procedural or domain-randomised run)."""
+    return c.train.eval_paper_pairs and (pair_scenario(c) != c.env.scenario or nominal_env_kwargs(c) != env_kwargs(c))
+
+
+def alongside_blocker(c: Config) -> str | None:
+    """Why this run's evaluations cannot run alongside training (train.eval_alongside), or None. The
+    lanes are extra envs of the training step, so every evaluation episode must run in the training env
+    and one policy must drive them."""
+    if c.train.eval_trained_actor and c.agent.policy_average_tau < 1.0:
+        return "train.eval_trained_actor evaluates a second policy on the same episodes"
+    if pairs_own_env(c):
+        return (f"the paper pairs run in scenario {pair_scenario(c)} with the nominal plant, not in the training "
+                f"env (env.scenario={c.env.scenario}" + (", dr_* ranges)" if nominal_env_kwargs(c) != env_kwargs(c)
+                                                         else ")"))
+    return None
 
 
 # ---------------------------------------------------------------------------------------- output

@@ -42,6 +42,9 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         assert t.updates_per_step * t.total_env_steps == 200_000_000
         # training starts near the risers (the paper's W-A start is 1.05 m from one): measured for the LSTM agents only
         assert dict(c.env.overrides).get("goal_clearance", 1.0) == (0.6 if name.endswith("_lstm") else 1.0)
+    # Evaluations alongside training on a GPU for the 4,096-env defaults (BENCHMARKS.md); the paper
+    # recipes keep their evaluations between chunks.
+    assert c.train.eval_alongside == (not name.endswith("_paper") and jax.default_backend() != "cpu")
 
 
 def test_generalist_trains_in_procedural_tanks_under_randomisation():
@@ -55,6 +58,30 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     for key, value in env.items():
         if key.startswith("dr_"):
             assert value[0] <= value[1], key
+
+
+def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_refused():
+    notes = []
+    raw = yaml.safe_load((packaged_configs_dir() / "td3_lstm.yaml").read_text())
+    assert config_from_dict(raw, backend="gpu", notes=notes).train.eval_alongside
+    assert "train.eval_alongside auto -> true" in notes
+    assert not config_from_dict(raw, backend="cpu").train.eval_alongside   # every lane costs its share there
+    # Where the pairs need an env of their own (procedural tanks, domain randomisation) or a second policy is
+    # evaluated on the same episodes, auto says why it is off, and true is an error naming the fix.
+    notes = []
+    generalist = yaml.safe_load((packaged_configs_dir() / "td3_lstm_generalist.yaml").read_text())
+    assert not config_from_dict(generalist, backend="gpu", notes=notes).train.eval_alongside
+    assert any(n.startswith("train.eval_alongside auto -> false (the paper pairs run in scenario 2") for n in notes)
+    for sets in (["train.eval_alongside=true", "env.scenario=0"], ["train.eval_alongside=true", "env.dr_wind_scale=[1.0, 2.0]"],
+                 ["train.eval_alongside=true", "train.eval_trained_actor=true"]):
+        with pytest.raises(ConfigError, match="train.eval_alongside.*not possible here.*set it false"):
+            load_config("td3_lstm", sets)
+    # Pairs of the training env's own scenario and plant, or no pairs: possible.
+    assert load_config("td3_lstm", ["train.eval_alongside=true", "env.scenario=3"]).train.eval_alongside
+    assert load_config("td3_lstm", ["train.eval_alongside=true", "env.scenario=0",
+                                    "train.eval_paper_pairs=false"]).train.eval_alongside
+    with pytest.raises(ConfigError, match="eval_alongside='maybe': must be a bool .* or 'auto'"):
+        load_config("td3_lstm", ["train.eval_alongside=maybe"])
 
 
 def test_auto_sizes_resolve_per_backend_and_say_so():

@@ -36,9 +36,9 @@ from docrl_jax import checkpoint, memory, runs, sharding
 from docrl_jax.config import Config, load_config, to_yaml
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
-from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, Cadence, Hooks,
-                                  Interrupt, make_console, run_chunks, schedule)
-from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
+from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, Cadence, Evaluations,
+                                  Hooks, Interrupt, make_console, run_chunks, schedule)
+from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache
 
 __all__ = ["EXIT_CONFIG", "EXIT_INTERRUPTED", "EXIT_NONFINITE", "EXIT_OK", "build_parser", "main", "run"]
 
@@ -272,27 +272,21 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     def wall() -> float:
         return wall_before + time.time() - launch_time
 
-    def evaluate(state, steps: int):
-        nonlocal pending, best, last_eval
-        ekeys = placement.put_seeds(np.asarray(eval_keys(seeds, steps)))
-        ev = placement.get(programs.evaluate(state.agent.actor_average, ekeys))
+    def record(steps: int, taken: dict, updates, ev: dict, trained: dict, policy):
+        nonlocal best, last_eval
         if t_cfg.track_best_policy:
-            best, _ = best_policy.update(best, placement.get(state.agent.actor_average), ev, steps)
-        trained = {}
-        if t_cfg.eval_trained_actor and config.agent.policy_average_tau < 1.0:
-            trained = placement.get(programs.evaluate(state.agent.actor, ekeys))  # same episodes, the trained actor
-        rows = metrics.eval_rows(config, seeds, steps, wall(), pending, ev, trained, placement.get(state.agent.updates))
+            best, _ = best_policy.update(best, policy(), ev, steps)
+        rows = metrics.eval_rows(config, seeds, steps, wall(), taken, ev, trained, updates)
         if primary:
             metrics.append_rows(metrics_path, rows)
         for k, v in ev.items():  # every metric the evaluation returns, mean over seeds
             writer.add_scalar(f"eval/{k}", float(np.mean(v)), steps)
-        pending = metrics.empty_pending(len(seeds))
         last_eval = metrics.eval_success(rows)
-        videos.after_evaluation(lambda: placement.get(state.agent.actor_average), steps,
-                                final=steps >= plan.total_env_steps)
+        videos.after_evaluation(policy, steps, final=steps >= plan.total_env_steps)
 
     def save(state, steps: int, chunks: int):
-        meta = {"env_steps": steps, "chunk": chunks, "wall_time_s": wall(), "pending": pending, "name": config.name}
+        meta = {"env_steps": steps, "chunk": chunks, "wall_time_s": wall(), "pending": evaluations.pending,
+                "name": config.name}
         best_params = None
         if best is not None:  # each seed's best evaluated policy so far (docrl_jax.train.best_policy)
             meta["best"] = best_policy.to_meta(best)
@@ -310,7 +304,6 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
                           f"Last good checkpoint: {'none' if last is None else f'env step {last}'} in "
                           f"{run_dir / checkpoint.CHECKPOINT_DIR}")
             return False
-        metrics.accumulate(pending, m)
         return True
 
     display = _Display(console, config.name, plan.total_env_steps, env_steps, show_progress)
@@ -322,18 +315,23 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         metrics.log_chunk(writer, m, steps, sps)
         display.chunk(steps, sps, eta, metrics.stats_line(m, last_eval))
 
-    hooks = Hooks(check=check, evaluate=evaluate, show=show, save=save)  # save is collective: every process
+    # save is collective: every process
+    hooks = Hooks(check=check, record=record, show=show, save=save)
+    evaluations = Evaluations(programs, placement, seeds, hooks,
+                              trained_actor=t_cfg.eval_trained_actor and config.agent.policy_average_tau < 1.0,
+                              pending=pending)
     evals = Cadence(t_cfg.eval_every, t_cfg.eval_every_minutes)
     saves = Cadence(t_cfg.checkpoint_every, t_cfg.checkpoint_every_minutes)
     with Interrupt(console) as interrupt, display.live(), contextlib.closing(videos):
         newest = mngr.latest_step()
         interrupt.newest = "none yet" if newest is None else f"env step {newest:,}"
         if not resume:
-            evaluate(state, 0)
+            state = evaluations.first(state)
             evals.done()
-        startup["launch_to_training_s"] = round(time.time() - launch_time, 2)  # initialised, evaluated at step 0
+        # Initialised and evaluated at step 0 (alongside: that evaluation begins with the first chunk).
+        startup["launch_to_training_s"] = round(time.time() - launch_time, 2)
         state, done_chunks, status = run_chunks(
-            plan, programs.chunk, state, done_chunks, hooks, evals, saves, interrupt, get=placement.get,
+            plan, programs.chunk, state, done_chunks, hooks, evaluations, evals, saves, interrupt, get=placement.get,
             any_process=placement.any_process, num_seeds=len(seeds), stop_after_chunks=stop_after_chunks)
     writer.close()
     mngr.close()

@@ -5,7 +5,10 @@ due, show progress, and stop cleanly on Ctrl-C.
 What differs between a run and a sweep (what a non-finite loss means, where evaluations are
 written, whether there are checkpoints) comes in as `Hooks`; when to evaluate and save is a
 `Cadence` each, by env steps or by wall-clock minutes, whichever comes first, so a slow device
-still writes learning curves and checkpoints.
+still writes learning curves and checkpoints. How an evaluation runs is `Evaluations`': paused
+(the evaluation program between chunks) or alongside training (train.eval_alongside: it begins with
+the next chunk and its rows are written when its last episode has ended); the final one, and one
+running alongside at a checkpoint or a stop, are paused ones.
 
 Ctrl-C (or SIGTERM, as a cluster's scheduler sends before it kills a job) is answered at once:
 the loop finishes the running chunk (XLA cannot stop it half-way), saves a checkpoint and stops.
@@ -26,6 +29,7 @@ from typing import Any, Callable, NamedTuple
 import jax
 import numpy as np
 
+from docrl_jax.train import metrics
 from docrl_jax.train.metrics import duration
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -172,9 +176,83 @@ def _block_quietly(tree: Any) -> None:
 class Hooks:
     """What a run and a sweep do differently in the loop."""
     check: Callable[[dict, int], bool]            # (chunk metrics on the host, env steps before it) -> go on?
-    evaluate: Callable[[Any, int], None]          # (runner state, env steps)
+    # When an evaluation's results are in: (env steps, the training statistics since the previous
+    # evaluation and the gradient updates made, both as of its env steps, its results, the trained
+    # actor's results or {}, a function giving the evaluated policy on the host) -> writes its rows.
+    record: Callable[[int, dict, Any, dict, dict, Callable[[], Any]], None]
     show: Callable[[dict, int, float, str], None]  # (chunk metrics, env steps, env steps/s, ETA text)
     save: Callable[[Any, int, int], None] | None = None  # (runner state, env steps, chunks done); None: never
+
+
+class Evaluations:
+    """Runs the evaluations of a run or a sweep (docrl_jax.train.evaluation) for the loop.
+
+    `now`: the evaluation program on the policy as it is, training waits (with `trained_actor`, the
+    trained actor too, on the same episodes). When the run's `programs` (docrl_jax.train.programs)
+    have evaluation lanes (train.eval_alongside), `begin` asks the next chunk to start the episodes in
+    them instead, `collect` records them after the chunk in which the last one ended, and `finish`
+    completes one still running with the program, on the same policy and episodes (before a
+    checkpoint, at a stop and at the end). `placement` is the run's `sharding.SeedPlacement`, `seeds`
+    its seed rows. `pending` holds the chunks' training
+    statistics since the last evaluation began (docrl_jax.train.metrics; a checkpoint keeps it)."""
+
+    def __init__(self, programs, placement, seeds: list[int], hooks: Hooks, trained_actor: bool = False,
+                 pending: dict | None = None):
+        self.evaluate, self.starts = programs.evaluate, programs.eval_starts
+        self.placement, self.seeds, self.hooks = placement, seeds, hooks
+        self.alongside, self.trained_actor = programs.eval_starts is not None, trained_actor
+        self.pending = metrics.empty_pending(len(seeds)) if pending is None else pending
+        self.running: tuple | None = None   # (env steps, statistics, updates) of the one running alongside
+
+    def _capture(self, state, steps: int) -> tuple:
+        """What the rows of the evaluation at `steps` take from the run at that point."""
+        taken, self.pending = self.pending, metrics.empty_pending(len(self.seeds))
+        return steps, taken, self.placement.get(state.agent.updates)
+
+    def _keys(self, steps: int):
+        from docrl_jax.train.evaluation import eval_keys
+        return self.placement.put_seeds(np.asarray(eval_keys(self.seeds, steps)))
+
+    def now(self, state, steps: int) -> None:
+        captured = self._capture(state, steps)
+        keys, get = self._keys(steps), self.placement.get
+        results = get(self.evaluate(state.agent.actor_average, keys))
+        trained = get(self.evaluate(state.agent.actor, keys)) if self.trained_actor else {}
+        self.hooks.record(*captured, results, trained, lambda: get(state.agent.actor_average))
+
+    def begin(self, state, steps: int):
+        """(state asking the next chunk to begin the evaluation of `steps`, True), or (state, False)
+        while another is still running."""
+        if self.running is not None:
+            return state, False
+        self.running = self._capture(state, steps)
+        lanes = state.evals.replace(begin=self.placement.put_seeds(np.ones(len(self.seeds), bool)),
+                                    fresh=self.starts(self._keys(steps)))
+        return state.replace(evals=lanes), True
+
+    def collect(self, state, m: dict) -> None:
+        """Records the evaluation running alongside if its last episode ended in the chunk of `m`."""
+        if self.running is None or np.any(np.asarray(m["evaluation"]["running"]) > 0):
+            return
+        captured, self.running = self.running, None
+        results = {k: v for k, v in m["evaluation"].items() if k != "running"}
+        self.hooks.record(*captured, results, {}, lambda: self.placement.get(state.evals.params))
+
+    def finish(self, state) -> None:
+        """Completes the evaluation running alongside, if any, with the program (training waits)."""
+        if self.running is None:
+            return
+        captured, self.running = self.running, None
+        get = self.placement.get
+        results = get(self.evaluate(state.evals.params, self._keys(captured[0])))
+        self.hooks.record(*captured, results, {}, lambda: get(state.evals.params))
+
+    def first(self, state):
+        """The evaluation at step 0 of a fresh run: returns the state to train on."""
+        if self.alongside:
+            return self.begin(state, 0)[0]
+        self.now(state, 0)
+        return state
 
 
 class Schedule(NamedTuple):
@@ -193,24 +271,26 @@ def schedule(config) -> Schedule:
     return Schedule(iters, iters * n, chunks, chunks * iters * n)
 
 
-def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: Hooks, evals: Cadence,
-               saves: Cadence | None, interrupt: Interrupt, get: Callable = jax.device_get,
-               any_process: Callable[[bool], bool] = bool, hp: tuple = (), num_seeds: int = 1, stop_after_chunks: int | None = None):
-    """Runs chunks from `done_chunks` to the end of the run. Evaluates when `evals` is due and at the
-    end; saves (when `hooks.save`) when `saves` is due, at the end and when stopped. `get` brings the
-    chunk's metrics to the host and `any_process` tells whether any process was interrupted
-    (`SeedPlacement.get` and `.any_process`: several processes stop together). `stop_after_chunks` acts
-    like a Ctrl-C after that many chunks of this call (tests). Returns (state, done_chunks, status)."""
+def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: Hooks, evaluations: Evaluations,
+               evals: Cadence, saves: Cadence | None, interrupt: Interrupt, get: Callable = jax.device_get,
+               any_process: Callable[[bool], bool] = bool, hp: tuple = (), num_seeds: int = 1,
+               stop_after_chunks: int | None = None):
+    """Runs chunks from `done_chunks` to the end of the run. Evaluates (`evaluations`) when `evals` is
+    due and at the end; saves (when `hooks.save`) when `saves` is due, at the end and when stopped.
+    `get` brings the chunk's metrics to the host and `any_process` tells whether any process was
+    interrupted (`SeedPlacement.get` and `.any_process`: several processes stop together). `stop_after_chunks` acts like a Ctrl-C after that many chunks of this call
+    (tests). Returns (state, done_chunks, status)."""
     eta = Eta()
     total = plan.num_chunks * plan.steps_per_chunk
     env_steps = done_chunks * plan.steps_per_chunk
     status, this_call = EXIT_OK, 0
+    due = False   # an evaluation is due; alongside, it waits until the running one has ended
 
-    def timed_eval(state, steps):
+    def paused(action, *args):
+        """An evaluation training waits for: its time counts towards the ETA."""
         t0 = time.time()
-        hooks.evaluate(state, steps)
+        action(*args)
         eta.add_eval(time.time() - t0)
-        evals.done()
 
     while done_chunks < plan.num_chunks:
         t0 = time.time()
@@ -220,25 +300,41 @@ def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: 
         if not hooks.check(m, env_steps):
             status = EXIT_NONFINITE
             break
+        metrics.accumulate(evaluations.pending, m)
         done_chunks, this_call = done_chunks + 1, this_call + 1
         prev, env_steps = env_steps, done_chunks * plan.steps_per_chunk
         eta.add_chunk(dt, learning=int(np.min(m["learn_iters"])) >= plan.iters_per_chunk)
         final = done_chunks == plan.num_chunks
+        if evaluations.alongside:
+            evaluations.collect(state, m)
         # Every decision below is agreed over the processes (`any_process`): the evaluation and the
         # save are collective, and each process's wall clock would decide the minutes cadences alone.
-        if final or any_process(evals.due(prev, env_steps)):
-            timed_eval(state, env_steps)
+        due = due or final or any_process(evals.due(prev, env_steps))
         interrupt.poll()
         stop = any_process(interrupt.requested) or (stop_after_chunks is not None and this_call >= stop_after_chunks)
-        if hooks.save is not None and (final or stop or any_process(saves.due(prev, env_steps))):
+        save = hooks.save is not None and (final or stop or any_process(saves.due(prev, env_steps)))
+        pause = final or stop or not evaluations.alongside
+        if final or stop or save:   # an evaluation running alongside is recorded before the checkpoint
+            paused(evaluations.finish, state)
+        if due and pause:
+            paused(evaluations.now, state, env_steps)
+            due = False
+            evals.done()
+        if save:
             with interrupt.saving():
                 hooks.save(state, env_steps, done_chunks)
             saves.done()
             interrupt.newest = f"env step {env_steps:,}"
+        if due and not pause:       # after the save: a checkpoint holds no evaluation about to begin
+            state, began = evaluations.begin(state, env_steps)
+            if began:
+                due = False
+                evals.done()
         interrupt.next_stop = f"after the running chunk (about {duration(dt)})"
         sps = plan.steps_per_chunk * num_seeds / dt  # env steps/s of all seeds in this chunk
-        hooks.show(m, env_steps, sps, eta.text(plan.num_chunks - done_chunks,
-                                                evals.remaining(env_steps, total)))
+        # Alongside, only the final evaluation pauses training.
+        evals_left = 1 if evaluations.alongside else evals.remaining(env_steps, total)
+        hooks.show(m, env_steps, sps, eta.text(plan.num_chunks - done_chunks, evals_left))
         if stop and not final:
             status = EXIT_INTERRUPTED
             break

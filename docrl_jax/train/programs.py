@@ -1,4 +1,5 @@
-"""The compiled programs of a run (init, chunk, evaluate), built for the devices the seeds are split
+"""The compiled programs of a run (init, chunk, evaluate; with train.eval_alongside also eval_starts,
+the first states of an evaluation's episodes for the chunk's lanes), built for the devices the seeds are split
 over and compiled once per process; JAX's persistent compilation cache, which makes the next
 process skip compiling; and the program store beside it (docrl_jax.train.program_store), which makes
 it skip tracing too.
@@ -34,9 +35,6 @@ from docrl_jax.config import Config
 from docrl_jax.train import program_store
 from docrl_jax.train.trainer import make_trainer
 
-_EVAL_SALT = 0x5EA1
-
-
 # ------------------------------------------------------------------ the persistent compilation cache
 def default_compile_cache() -> str:
     env = os.environ.get("DOCRL_JAX_COMPILE_CACHE")
@@ -68,13 +66,6 @@ def device_line() -> str:
     return f"{devs[0].platform.upper()}: {devs[0].device_kind} ({len(devs)} device{'s' if len(devs) > 1 else ''})"
 
 
-def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
-    """Keys of the evaluation at `env_steps`: a function of seed and step only, so a resumed run
-    evaluates on exactly the episodes an uninterrupted one would."""
-    return jnp.stack([jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(s), _EVAL_SALT), env_steps)
-                      for s in seeds])
-
-
 # ------------------------------------------------------------------ the programs
 class Programs(NamedTuple):
     init: Callable        # (keys (S, 2), total env steps, [hp]) -> RunnerState stacked over seeds
@@ -82,6 +73,7 @@ class Programs(NamedTuple):
     evaluate: Callable    # (actor params stacked over seeds, keys (S, 2)) -> per-seed eval metrics
     state_shape: Any      # the RunnerState's shapes (what a checkpoint is restored into)
     origin: str = "compiled"  # "compiled" in this process, or "loaded" from the program store
+    eval_starts: Callable | None = None  # keys (S, 2) -> the evaluation lanes' first states (train.eval_alongside)
 
 
 def program_config(config: Config, traced: bool = False) -> Config:
@@ -131,14 +123,22 @@ def compile_programs(config: Config, devices: tuple | None = None, traced: bool 
     _COMPILED[names["evaluate"]] = compiled["evaluate"]
     # The runner state's shapes, as the init program returns them (what a checkpoint is restored into).
     state_shape = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype), compiled["init"].out_info)
-    _COMPILED[whole] = Programs(compiled["init"], compiled["chunk"], compiled["evaluate"], state_shape, origin)
+    _COMPILED[whole] = Programs(compiled["init"], compiled["chunk"], compiled["evaluate"], state_shape, origin,
+                                compiled.get("eval_starts"))
     return _COMPILED[whole], time.time() - t0
 
 
 def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[str, str]:
-    """The program store's entry names of init, chunk and evaluate for this config and devices."""
+    """The program store's entry names of init, chunk and evaluate (and eval_starts, with
+    train.eval_alongside) for this config and devices."""
     config = program_config(config, traced)
-    described = {"init": (config, traced), "chunk": (config, traced), "evaluate": (program_config(config, True), None)}
+    # The evaluation's programs read no HParams and not how evaluations run: sweeps and plain runs, with
+    # evaluations alongside training or not, share them.
+    evaluation = program_config(dataclasses.replace(config, train=dataclasses.replace(config.train, eval_alongside=False)),
+                                True)
+    described = {"init": (config, traced), "chunk": (config, traced), "evaluate": (evaluation, None)}
+    if config.train.eval_alongside:
+        described["eval_starts"] = (evaluation, None)
     return {what: program_store.key(repr(c), program_store.device_key(devices), kind, what)
             for what, (c, kind) in described.items()}
 
@@ -152,9 +152,9 @@ def _load(store, names: dict, devices) -> dict | None:
 
 
 def _compile(config: Config, devices: tuple, traced: bool, eval_key) -> tuple[dict, list]:
-    """init, chunk and evaluate traced and compiled, in threads (evaluate reused from the memo), and
-    the names of those the store may keep (program_store.compile_lowered)."""
-    init, chunk, evaluate = _jitted(config, devices, traced)
+    """init, chunk, evaluate (and eval_starts) traced and compiled, in threads (evaluate reused from the
+    memo), and the names of those the store may keep (program_store.compile_lowered)."""
+    init, chunk, evaluate, eval_starts = _jitted(config, devices, traced)
     n = config.train.num_seeds
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)
@@ -163,6 +163,8 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key) -> tuple[di
     lowerings = {"init": lambda: init.lower(keys, total, *hp), "chunk": lambda: chunk.lower(state_shape, *hp)}
     if eval_key not in _COMPILED:
         lowerings["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys)
+    if eval_starts is not None:
+        lowerings["eval_starts"] = lambda: eval_starts.lower(keys)
     with ThreadPoolExecutor(len(lowerings)) as pool:
         done = {name: pool.submit(program_store.compile_lowered, lower, devices[0].platform)
                 for name, lower in lowerings.items()}
@@ -172,24 +174,29 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key) -> tuple[di
 
 
 def _jitted(config: Config, devices: tuple, traced: bool):
-    """init, chunk and evaluate over the seed axis, jitted (not yet compiled) for `devices`."""
+    """init, chunk, evaluate and eval_starts (None without train.eval_alongside) over the seed axis,
+    jitted (not yet compiled) for `devices`."""
     trainer = make_trainer(config)
     batched = config.train.num_seeds // len(devices) > 1   # seeds per device
     squeeze = lambda tree: jax.tree.map(lambda x: x[0], tree)  # noqa: E731
     expand = lambda tree: jax.tree.map(lambda x: x[None], tree)  # noqa: E731
+    starts = trainer.eval_starts
     if batched:
         init = jax.vmap(trainer.init_total, (0, None, 0) if traced else (0, None))
         chunk = jax.vmap(trainer.chunk)
         evaluate = jax.vmap(trainer.evaluate)
+        eval_starts = starts and jax.vmap(starts)
     else:  # hp: () for a plain run (the config's constants), (hp,) with a seed axis when traced
         init = lambda keys, total, *hp: expand(trainer.init_total(keys[0], total, *squeeze(hp)))  # noqa: E731
         chunk = lambda state, *hp: expand(trainer.chunk(squeeze(state), *squeeze(hp)))  # noqa: E731
         evaluate = lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))  # noqa: E731
+        eval_starts = starts and (lambda keys: expand(starts(keys[0])))
     seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
     hp = (seeds,) if traced else ()
     return (_over_seeds(init, devices, (seeds, whole, *hp)),
             _over_seeds(chunk, devices, (seeds, *hp), donate_argnums=0),
-            _over_seeds(evaluate, devices, (seeds, seeds)))
+            _over_seeds(evaluate, devices, (seeds, seeds)),
+            eval_starts and _over_seeds(eval_starts, devices, (seeds,)))
 
 
 def _over_seeds(f, devices: tuple, in_specs: tuple, **jit_kwargs):

@@ -55,8 +55,9 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, HParams, hparams_neutral
 from docrl_jax.config import Config, field_docs, load_config, parse_overrides, to_yaml, validate
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import metrics
-from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Hooks, Interrupt, make_console, run_chunks, schedule
-from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache, eval_keys
+from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
+                                  make_console, run_chunks, schedule)
+from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
 
 SWEEP_FILE = runs.SWEEP_FILE
@@ -247,16 +248,10 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     console.print(f"{programs.origin} in {compile_s:.1f} s")
     total = placement.put_replicated(np.asarray(plan.total_env_steps, np.int32))
     state = programs.init(keys, total, hp)
-    pending = metrics.empty_pending(len(rows))
     trained_actor = [c.config.train.eval_trained_actor and c.config.agent.policy_average_tau < 1.0 for c, _ in rows]
 
-    def evaluate(state, steps: int):
-        nonlocal pending
-        ekeys = placement.put_seeds(np.asarray(eval_keys(seeds, steps)))
-        ev = placement.get(programs.evaluate(state.agent.actor_average, ekeys))
-        trained = placement.get(programs.evaluate(state.agent.actor, ekeys)) if any(trained_actor) else {}
-        out = metrics.eval_rows(cfg, seeds, steps, time.time() - start, pending, ev, trained,
-                                placement.get(state.agent.updates))
+    def record(steps: int, taken: dict, updates, ev: dict, trained: dict, policy):
+        out = metrics.eval_rows(cfg, seeds, steps, time.time() - start, taken, ev, trained, updates)
         for row, (c, _), wants in zip(out, rows, trained_actor):
             if not wants:
                 for k in metrics.TRAINED_ACTOR_KEYS:
@@ -266,7 +261,6 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
         for c in group.combinations:
             metrics.append_rows(run_dir / c.name / runs.METRICS_FILE,
                                 [r for r in out if r["combination"] == c.name], columns(grid))
-        pending = metrics.empty_pending(len(rows))
         mean = {c.name: metrics.eval_success([r for r in out if r["combination"] == c.name])
                 for c in group.combinations}
         console.print(f"{steps:,} env steps, {time.time() - start:.0f} s: eval success "
@@ -279,15 +273,15 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
                 diverged[c.name].append(s)
                 console.print(f"[bold red]non-finite loss[/] in {c.name} ({c.values}), seed {s}; its rows go on "
                               f"(independent of the others) and the table marks it as diverged")
-        metrics.accumulate(pending, m)
         return True  # a diverged row does not stop the others
 
-    hooks = Hooks(check=check, evaluate=evaluate, show=lambda *_: None)
+    hooks = Hooks(check=check, record=record, show=lambda *_: None)
+    evaluations = Evaluations(programs, placement, seeds, hooks, trained_actor=any(trained_actor))
     evals = Cadence(t.eval_every, t.eval_every_minutes)
-    evaluate(state, 0)
+    state = evaluations.first(state)
     evals.done()
-    _, _, status = run_chunks(plan, programs.chunk, state, 0, hooks, evals, None, interrupt, get=placement.get,
-                              hp=(hp,), num_seeds=len(rows))
+    _, _, status = run_chunks(plan, programs.chunk, state, 0, hooks, evaluations, evals, None, interrupt,
+                              get=placement.get, hp=(hp,), num_seeds=len(rows))
     return status
 
 

@@ -15,8 +15,11 @@ actions are uniform in [-1, 1]^3 (paper's start_steps).
 
 A *chunk* is `log_every` env steps of iterations (rounded up to whole iterations). The training
 loop (docrl_jax.train.loop) calls the compiled chunk repeatedly, donating the runner state, and
-between chunks logs, evaluates (docrl_jax.train.evaluation) and checkpoints. `make_train`'s
-`train(key)` runs all chunks in one program without evaluation.
+between chunks logs, evaluates (docrl_jax.train.evaluation) and checkpoints. With
+`train.eval_alongside` the evaluation's episodes are extra env lanes after the num_envs training
+envs, stepped in the same vectorised step by a frozen copy of the policy: an evaluation the host
+asks for (`RunnerState.evals.begin`, with the episodes' first states from `eval_starts`, a program of
+its own) starts with the next chunk, and each chunk reports the lanes' tally. `make_train`'s `train(key)` runs all chunks in one program without evaluation.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from docrl_jax.algorithms import Agent, AgentState, make_agent
 from docrl_jax.config import Config, env_kwargs
 from docrl_jax.networks import expand_flag
 from docrl_jax.replay import BufferState, make_sequence_buffer
-from docrl_jax.train.evaluation import make_evaluate
+from docrl_jax.train.evaluation import make_evaluation
 from docrl_jax.train.loop import schedule
 
 
@@ -41,7 +44,7 @@ from docrl_jax.train.loop import schedule
 class RunnerState:
     agent: AgentState
     buffer: BufferState
-    env: Any                 # EnvState of num_envs envs
+    env: Any                 # EnvState of num_envs envs (then the evaluation lanes, with train.eval_alongside)
     carry: Any               # actor carry after the last step, [num_envs, ...]
     noise: jax.Array         # exploration noise state, [num_envs, 3]
     start: jax.Array         # [num_envs] bool: env.obs is the first obs of an episode
@@ -51,6 +54,8 @@ class RunnerState:
     total_steps: jax.Array   # () int32 env steps of the whole run (schedules use env_steps / total_steps);
                              # state rather than a constant, so runs of any length share one program
     key: jax.Array
+    evals: Any = None        # evaluation.Lanes with train.eval_alongside: the evaluation's episodes are then
+                             # the last lanes of `env`, after the num_envs training envs
 
 
 class Trainer(NamedTuple):
@@ -66,6 +71,7 @@ class Trainer(NamedTuple):
     chunk: Callable          # (RunnerState, hp=None) -> (RunnerState, chunk metrics) (one seed)
     train: Callable          # key -> (RunnerState, metrics stacked over chunks) (one seed)
     evaluate: Callable       # (actor_params, key) -> eval metrics (one seed)
+    eval_starts: Callable | None  # key -> the evaluation lanes' first states (train.eval_alongside), else None
     init_carry: Callable     # batch_shape -> zero actor carry
     memory: bool
 
@@ -90,6 +96,10 @@ def make_trainer(config: Config) -> Trainer:
     def init_carry(batch_shape=()):
         return agent.actor.init_carry(batch_shape)
 
+    evaluation = make_evaluation(config, agent.act, init_carry, memory, env)
+    lanes = evaluation.alongside   # None, or the evaluation's env lanes after the n training envs
+    train_rows = (lambda x: x[:n]) if lanes else (lambda x: x)  # noqa: E731
+
     def init(key) -> RunnerState:
         return init_total(key, total)
 
@@ -100,11 +110,18 @@ def make_trainer(config: Config) -> Trainer:
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, n))
         example = _buffer_step(env_state.obs[0], jnp.zeros(3), jnp.zeros(()), env_state.obs[0], jnp.zeros((), bool),
                                jnp.zeros((), bool), jnp.zeros((), bool), init_carry())
-        return RunnerState(agent=agent.init(k_agent, hp), buffer=buffer.init(example), env=env_state,
+        agent_state = agent.init(k_agent, hp)
+        evals = None
+        if lanes:  # idle lanes until the host asks for an evaluation: copies of training envs, whose draws
+            # are unchanged (a copy runs as its original does, and nothing of an idle lane is read)
+            idle = jax.tree.map(lambda x: x[jnp.arange(lanes.size) % n], env_state)
+            env_state = jax.tree.map(lambda *xs: jnp.concatenate(xs), env_state, idle)
+            evals = lanes.init(agent_state.actor_average, idle)
+        return RunnerState(agent=agent_state, buffer=buffer.init(example), env=env_state,
                            carry=init_carry((n,)), noise=agent.init_noise(n), start=jnp.ones(n, bool),
                            ep_return=jnp.zeros(n), ep_arrivals=jnp.zeros(n, jnp.int32),
                            env_steps=jnp.zeros((), jnp.int32),
-                           total_steps=jnp.asarray(total_steps, jnp.int32), key=k_run)
+                           total_steps=jnp.asarray(total_steps, jnp.int32), key=k_run, evals=evals)
 
     def chunk(rs: RunnerState, hp=None):
         def iteration(rs: RunnerState, _):
@@ -117,22 +134,29 @@ def make_trainer(config: Config) -> Trainer:
                 carry_in = jax.tree.map(lambda z, c: jnp.where(expand_flag(rs.start, c), z, c), zero, rs.carry)
             else:
                 carry_in = zero
-            carry, noise, action = agent.explore(rs.agent, carry_in, rs.noise, rs.env.obs, rs.start, k_act, progress,
-                                                hp)
+            obs = train_rows(rs.env.obs)
+            carry, noise, action = agent.explore(rs.agent, carry_in, rs.noise, obs, rs.start, k_act, progress, hp)
             random_phase = rs.env_steps < t.start_steps
             uniform = jax.random.uniform(k_rand, action.shape, minval=-1.0, maxval=1.0)
             action = jnp.where(random_phase, uniform, action)
+            evals = rs.evals
+            if lanes:  # the evaluation's episodes, by their own policy, in the same vectorised step
+                evals, lane_action = lanes.act(evals, rs.env.obs[n:])
+                action_all = jnp.concatenate([action, lane_action])
+            else:
+                action_all = action
 
             # 2. Step all envs (auto-reset) and store the transition with its true next obs.
-            env_state = jax.vmap(env.step)(rs.env, action)
-            info = env_state.info
-            step = _buffer_step(rs.env.obs, action, env_state.reward, info["final_obs"], info["terminated"],
+            env_state = jax.vmap(env.step)(rs.env, action_all)
+            if lanes:
+                evals = lanes.count(evals, jax.tree.map(lambda x: x[n:], env_state))
+            reward, done, info = jax.tree.map(train_rows, (env_state.reward, env_state.done, env_state.info))
+            step = _buffer_step(obs, action, reward, info["final_obs"], info["terminated"],
                                 info["truncated"], rs.start, carry_in)
             buf = buffer.add(rs.buffer, step)
 
             # 3. Episode statistics of the training envs.
-            done = env_state.done
-            ep_return = rs.ep_return + env_state.reward
+            ep_return = rs.ep_return + reward
             arrivals = rs.ep_arrivals + info["arrived"].astype(jnp.int32)
             episodes = {"episodes": jnp.sum(done), "return_sum": jnp.sum(jnp.where(done, ep_return, 0.0)),
                         "success_sum": jnp.sum(done & (arrivals > 0)),
@@ -158,19 +182,27 @@ def make_trainer(config: Config) -> Trainer:
             rs = RunnerState(agent=agent_state, buffer=buf, env=env_state, carry=carry, noise=noise, start=done,
                              ep_return=jnp.where(done, 0.0, ep_return),
                              ep_arrivals=jnp.where(done, 0, arrivals), env_steps=env_steps,
-                             total_steps=rs.total_steps, key=key)
+                             total_steps=rs.total_steps, key=key, evals=evals)
             return rs, {**episodes, **upd, "learn": learn}
 
+        if lanes:  # an evaluation the host asked for begins with this chunk, on the policy as it is now
+            def begin(rs):
+                evals, env_state = lanes.begin(rs.evals, rs.env, rs.agent.actor_average)
+                return rs.replace(evals=evals, env=env_state)
+            rs = jax.lax.cond(rs.evals.begin, begin, lambda rs: rs, rs)
         rs, m = jax.lax.scan(iteration, rs, None, length=iters_per_chunk)
-        return rs, _chunk_summary(m)
+        out = _chunk_summary(m)
+        if lanes:  # the lanes' tally after this chunk: final once none is running
+            out["evaluation"] = lanes.results(rs.evals)
+        return rs, out
 
     def train(key):
         return jax.lax.scan(lambda rs, _: chunk(rs), init(key), None, length=num_chunks)
 
-    evaluate = make_evaluate(config, agent.act, init_carry, memory)
     return Trainer(config=config, agent=agent, env=env, iters_per_chunk=iters_per_chunk, num_chunks=num_chunks,
                    steps_per_chunk=steps_per_chunk, total_env_steps=total, init=init, init_total=init_total, chunk=chunk, train=train,
-                   evaluate=evaluate, init_carry=init_carry, memory=memory)
+                   evaluate=evaluation.evaluate, eval_starts=lanes.starts if lanes else None, init_carry=init_carry,
+                   memory=memory)
 
 
 def _buffer_step(obs, action, reward, next_obs, terminated, truncated, start, carry) -> dict:

@@ -23,7 +23,8 @@ from docrl_jax.config import config_from_dict
 from docrl_jax.train.cli import run
 
 from docrl_jax.train import make_trainer
-from docrl_jax.train.programs import compile_programs, eval_keys
+from docrl_jax.train.evaluation import eval_keys
+from docrl_jax.train.programs import compile_programs
 
 STEPS = 160_000
 MARGIN = 0.5

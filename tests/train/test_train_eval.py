@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from docrl_jax.config import load_config
-from docrl_jax.train.evaluation import make_evaluate
+from docrl_jax.train.evaluation import make_evaluation
 from docrl_jax.train.metrics import FAILURE_COLUMNS
 
 
@@ -20,7 +20,7 @@ def evaluate():
     def act(params, carry, obs):  # the "actor parameters" are the constant action itself
         return carry, jnp.broadcast_to(params, (obs.shape[0], 3))
 
-    return jax.jit(make_evaluate(config, act, lambda shape: jnp.zeros(shape), memory=False))
+    return jax.jit(make_evaluation(config, act, lambda shape: jnp.zeros(shape), memory=False, train_env=None).evaluate)
 
 
 def test_diving_leaves_the_bounds_and_cruising_hits_something(evaluate):
