@@ -1,7 +1,8 @@
-"""The table of benchmarks/ab_launches.sh: per launch, start-up (startup.json), the median env
-steps/s of the learning chunks (from the trainer's log), seconds per
-evaluation interval after the first (6 chunks of 409,600 env steps and one evaluation: the
-steady-state pace), and time to 90 % both ways; medians per version.
+"""The table of benchmarks/ab_launches.sh (or any DIR/{old,new}/time_to_success_{side}_s*.json with
+the runs in DIR/runs_{side}/): per launch, start-up (startup.json), the median env steps/s of the
+learning chunks (from the trainer's log), seconds between evaluation rows after the first (the
+steady-state pace), time to 90 % both ways, and, for launches run to their end (--to-end), launch to
+end and the final evaluation's A-W / W-A; medians per version.
 
     python3 benchmarks/ab_summary.py benchmarks/results/h100/top_floor_rebuild > .../summary.md
 """
@@ -35,7 +36,10 @@ def launch(run_dir: str, ttt: dict, log: str) -> dict:
             "launch_to_first_chunk_s": start["launch_to_first_chunk_s"],
             "chunk_steps_per_s": chunk_steps_per_s(log),
             "interval_s": statistics.median([b - a for a, b in zip(wall[1:-1], wall[2:])]),
-            "time_to_90_s": seed["time_to_target_s"], "env_steps_at_90": seed["env_steps_at_target"]}
+            "time_to_90_s": seed["time_to_target_s"], "env_steps_at_90": seed["env_steps_at_target"],
+            "launch_to_end_s": seed["elapsed_s"] if ttt.get("to_end") else None,
+            "final_aw": seed["final"]["air_to_water"] if ttt.get("to_end") else None,
+            "final_wa": seed["final"]["water_to_air"] if ttt.get("to_end") else None}
 
 
 def main(dirs: list[str]) -> None:
@@ -47,7 +51,8 @@ def main(dirs: list[str]) -> None:
                 run = os.path.join(d, f"runs_{side}", os.path.basename(ttt["seeds"][0]["run_dir"]))
                 by_side[side].append(launch(run, ttt, path.replace(".json", f"_seed{ttt['seeds'][0]['seed']}.log")))
     cols = ["launch", "compile_s", "launch_to_first_chunk_s", "chunk_steps_per_s", "interval_s", "time_to_90_s",
-            "env_steps_at_90"]
+            "env_steps_at_90", "launch_to_end_s", "final_aw", "final_wa"]
+    cols = [c for c in cols if any(r[c] is not None for rows in by_side.values() for r in rows)]
     print("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols))
     for side, rows in by_side.items():
         for r in rows:

@@ -187,8 +187,9 @@ class TrainConfig:
     eval_alongside: bool = documented(False,
         "Run each periodic evaluation's episodes alongside training, as extra lanes of the chunk's "
         "vectorised env step driven by a frozen copy of the policy, instead of pausing training for them "
-        "(on a GPU a pause of ~1 s per evaluation: its steps are latency-bound; alongside they cost a few "
-        "per cent of the chunks they span, docs/BENCHMARKS.md). Same episodes, same starts, same rows "
+        "(on a GPU a pause per evaluation of latency-bound steps; alongside, the lanes cost 3.6 % of the "
+        "chunks' pace and the default td3_lstm ends 11 % sooner on an H100, docs/BENCHMARKS.md). Same "
+        "episodes, same starts, same rows "
         "(docrl_jax/train/evaluation.py); a row is written when its last episode has ended, up to "
         "env.max_episode_steps iterations later, and an evaluation that falls due meanwhile waits for it. "
         "The final evaluation, and one still running at a checkpoint or a stop, pause training as before. "
