@@ -30,6 +30,7 @@ import jax
 import numpy as np
 
 from docrl_jax.train import metrics
+from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.metrics import duration
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -193,8 +194,8 @@ class Evaluations:
     them instead, `collect` records them after the chunk in which the last one ended, and `finish`
     completes one still running with the program, on the same policy and episodes (before a
     checkpoint, at a stop and at the end). `placement` is the run's `sharding.SeedPlacement`, `seeds`
-    its seed rows. `pending` holds the chunks' training
-    statistics since the last evaluation began (docrl_jax.train.metrics; a checkpoint keeps it)."""
+    its seed rows. `pending` holds the chunks' training statistics since the last evaluation began
+    (docrl_jax.train.metrics; a checkpoint keeps it)."""
 
     def __init__(self, programs, placement, seeds: list[int], hooks: Hooks, trained_actor: bool = False,
                  pending: dict | None = None):
@@ -210,7 +211,6 @@ class Evaluations:
         return steps, taken, self.placement.get(state.agent.updates)
 
     def _keys(self, steps: int):
-        from docrl_jax.train.evaluation import eval_keys
         return self.placement.put_seeds(np.asarray(eval_keys(self.seeds, steps)))
 
     def now(self, state, steps: int) -> None:
@@ -278,8 +278,9 @@ def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: 
     """Runs chunks from `done_chunks` to the end of the run. Evaluates (`evaluations`) when `evals` is
     due and at the end; saves (when `hooks.save`) when `saves` is due, at the end and when stopped.
     `get` brings the chunk's metrics to the host and `any_process` tells whether any process was
-    interrupted (`SeedPlacement.get` and `.any_process`: several processes stop together). `stop_after_chunks` acts like a Ctrl-C after that many chunks of this call
-    (tests). Returns (state, done_chunks, status)."""
+    interrupted (`SeedPlacement.get` and `.any_process`: several processes stop together).
+    `stop_after_chunks` acts like a Ctrl-C after that many chunks of this call (tests). Returns
+    (state, done_chunks, status)."""
     eta = Eta()
     total = plan.num_chunks * plan.steps_per_chunk
     env_steps = done_chunks * plan.steps_per_chunk
@@ -305,8 +306,7 @@ def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: 
         prev, env_steps = env_steps, done_chunks * plan.steps_per_chunk
         eta.add_chunk(dt, learning=int(np.min(m["learn_iters"])) >= plan.iters_per_chunk)
         final = done_chunks == plan.num_chunks
-        if evaluations.alongside:
-            evaluations.collect(state, m)
+        evaluations.collect(state, m)
         # Every decision below is agreed over the processes (`any_process`): the evaluation and the
         # save are collective, and each process's wall clock would decide the minutes cadences alone.
         due = due or final or any_process(evals.due(prev, env_steps))

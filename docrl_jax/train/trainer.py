@@ -19,7 +19,8 @@ between chunks logs, evaluates (docrl_jax.train.evaluation) and checkpoints. Wit
 `train.eval_alongside` the evaluation's episodes are extra env lanes after the num_envs training
 envs, stepped in the same vectorised step by a frozen copy of the policy: an evaluation the host
 asks for (`RunnerState.evals.begin`, with the episodes' first states from `eval_starts`, a program of
-its own) starts with the next chunk, and each chunk reports the lanes' tally. `make_train`'s `train(key)` runs all chunks in one program without evaluation.
+its own) starts with the next chunk, and each chunk reports the lanes' tally. `make_train`'s
+`train(key)` runs all chunks in one program without evaluation.
 """
 
 from __future__ import annotations
@@ -112,8 +113,8 @@ def make_trainer(config: Config) -> Trainer:
                                jnp.zeros((), bool), jnp.zeros((), bool), init_carry())
         agent_state = agent.init(k_agent, hp)
         evals = None
-        if lanes:  # idle lanes until the host asks for an evaluation: copies of training envs, whose draws
-            # are unchanged (a copy runs as its original does, and nothing of an idle lane is read)
+        if lanes:  # idle lanes until the host asks for an evaluation: copies of the training envs' first
+            # states (no second reset to compile, the training envs' draws unchanged; an idle lane is never read)
             idle = jax.tree.map(lambda x: x[jnp.arange(lanes.size) % n], env_state)
             env_state = jax.tree.map(lambda *xs: jnp.concatenate(xs), env_state, idle)
             evals = lanes.init(agent_state.actor_average, idle)
