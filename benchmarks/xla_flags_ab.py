@@ -33,7 +33,7 @@ def child(config_name: str, sets: list[str], warmup: int, chunks: int, evals: in
     from docrl_jax.config import load_config
     from docrl_jax.train.loop import schedule
     from docrl_jax.train.evaluation import eval_keys
-from docrl_jax.train.programs import compile_programs
+    from docrl_jax.train.programs import compile_programs
 
     config = load_config(config_name, sets)
     t0 = time.time()

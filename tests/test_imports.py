@@ -113,3 +113,16 @@ def test_every_moved_module_name_says_where_it_lives_now():
         exec("from docrl_jax.policy import RunDirError", {})
     with pytest.raises(ImportError, match="import plan from docrl_jax.train.sweep"):
         exec("from docrl_jax.sweep import plan", {})
+
+
+def test_scripts_compile():
+    """Every script beside the package (benchmarks, examples) is valid Python: they run only on a GPU
+    machine or by hand, so nothing else here would notice one broken by an edit."""
+    root = PKG.parent
+    bad = []
+    for path in sorted([*root.glob("benchmarks/*.py"), *root.glob("examples/**/*.py")]):
+        try:
+            compile(path.read_text(), str(path), "exec")
+        except SyntaxError as e:
+            bad.append(f"{path.relative_to(root)}:{e.lineno}: {e.msg}")
+    assert not bad, bad
