@@ -11,12 +11,16 @@ Each launch is `python -m docrl_jax.train --config td3_lstm --set train.total_en
 chunks, so it starts learning and ends) in its own fresh process and run directory. Besides the
 trainer's own figures (whose clock starts where that version starts it), this script times every
 launch itself: from spawning the process to the appearance of its `startup.json`, which the trainer
-writes after the first chunk (`spawn_to_first_chunk_s`, imports included, the same clock for both).
+writes after the first chunk (`spawn_to_first_chunk_s`, imports included, the same clock for both),
+and to its exit (`spawn_to_exit_s`: the final evaluation included); `first_eval_row_s` is the
+wall_time_s of the run's first metrics.csv row (when the first evaluation's results were in, on the
+trainer's clock).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import os
 import statistics
@@ -29,7 +33,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import run_meta  # noqa: E402
 
 KEYS = ("spawn_to_first_chunk_s", "launch_to_compiled_s", "launch_to_training_s", "launch_to_first_chunk_s",
-        "compile_s")
+        "compile_s", "first_eval_row_s", "spawn_to_exit_s")
 
 
 def launch(root: str, cache: str, run_dir: str, config: str) -> dict:
@@ -48,11 +52,15 @@ def launch(root: str, cache: str, run_dir: str, config: str) -> dict:
             if seen is None and os.path.exists(startup):
                 seen = time.time() - t0
             time.sleep(0.01)
+        ended = time.time() - t0
         if proc.returncode != 0:
             log.seek(0)
             raise SystemExit(f"launch failed ({proc.returncode}): {log.read()[-3000:]}")
+    with open(os.path.join(run_dir, "metrics.csv")) as f:   # the first evaluation's row (launch clock)
+        first_row = next(csv.DictReader(f))
     with open(startup) as f:
-        return {"spawn_to_first_chunk_s": round(seen, 2), **json.load(f)}
+        return {"spawn_to_first_chunk_s": round(seen, 2), "first_eval_row_s": float(first_row["wall_time_s"]),
+                "spawn_to_exit_s": round(ended, 2), **json.load(f)}
 
 
 def main() -> None:
@@ -83,8 +91,8 @@ def main() -> None:
              f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
              f"Medians of {args.rounds} launches (s):", "",
              "| version, cache | spawn -> first chunk | launch -> compiled | launch -> training | "
-             "launch -> first chunk | compile |",
-             "|---|---|---|---|---|---|"]
+             "launch -> first chunk | compile or load | first evaluation row | spawn -> exit |",
+             "|---|---|---|---|---|---|---|---|"]
     lines += [f"| {name} | " + " | ".join(f"{v[k]:.2f}" for k in KEYS) + " |"
               for name, v in summary.items()]
     lines += ["", "Every launch (s, spawn -> first chunk): " + ", ".join(

@@ -133,3 +133,52 @@ def test_a_run_writes_each_evaluation_once_also_when_stopped_and_resumed(setup, 
             for k in ("success_rate", "success_air_to_water", "success_water_to_air", "episode_return",
                       "collision_air_to_water", "collision_water_to_air"):
                 assert float(r[k]) == pytest.approx(float(by_step[s][k]), rel=1e-5), (s, k)
+
+
+def test_the_first_evaluation_waits_for_its_programs_not_training(setup):
+    """With train.eval_alongside the evaluation's programs are built beside the first chunks
+    (programs.Pending): the step-0 evaluation is owed until they are there, training goes on, and it
+    begins after the first chunk that ends with them ready, on the policy of that step."""
+    from concurrent.futures import Future
+
+    from docrl_jax import sharding
+    from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, make_console, run_chunks, schedule
+    from docrl_jax.train.programs import Pending
+
+    import time
+
+    programs, fresh, _ = setup
+    assert isinstance(programs.evaluate, Pending) and isinstance(programs.eval_starts, Pending)
+    for _ in range(1200):  # the real ones, built in the background (they may still be compiling)
+        if programs.evaluation_ready():
+            break
+        time.sleep(0.1)
+    config = load_config("td3_lstm", SETS + ["train.total_env_steps=2400", "train.eval_every=100000"])
+    class Strict(Pending):  # a call before the program is there would wait for ever: fail instead
+        def __call__(self, *args):
+            assert self.ready(), f"{self.what} called before it was built"
+            return super().__call__(*args)
+
+    job = Future()
+    waiting = programs._replace(evaluate=Strict(job, "evaluate"), eval_starts=Strict(job, "eval_starts"))
+    assert not waiting.evaluation_ready() and programs.evaluation_ready()
+    recorded, chunks = [], []
+
+    def chunk(state):
+        chunks.append(len(chunks))
+        if len(chunks) == 3:   # the programs are built during the third chunk
+            job.set_result({"evaluate": programs.evaluate, "eval_starts": programs.eval_starts})
+        return programs.chunk(state)
+
+    hooks = Hooks(check=lambda m, s: True, record=lambda steps, *rest: recorded.append(steps),
+                  show=lambda *a: None)
+    evaluations = Evaluations(waiting, sharding.seed_placement(config.train), [0], hooks)
+    state, owed = evaluations.first(fresh())
+    assert owed and evaluations.running is None
+    plan = schedule(config)
+    with Interrupt(make_console(quiet=True)) as interrupt:
+        _, done, status = run_chunks(plan, chunk, state, 0, hooks, evaluations, Cadence(10**9, 1e9), None,
+                                     interrupt, due=owed)
+    assert status == 0 and done == plan.num_chunks == 6
+    # Owed from step 0, begun after chunk 3 (1,200 env steps), then the final one at the end.
+    assert recorded == [3 * plan.steps_per_chunk, 6 * plan.steps_per_chunk]
