@@ -325,15 +325,14 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     with Interrupt(console) as interrupt, display.live(), contextlib.closing(videos):
         newest = mngr.latest_step()
         interrupt.newest = "none yet" if newest is None else f"env step {newest:,}"
-        owed = False
         if not resume:
-            state, owed = evaluations.first(state)
+            state = evaluations.first(state)
             evals.done()
         # Initialised and evaluated at step 0 (alongside: that evaluation begins with the first chunk).
         startup["launch_to_training_s"] = round(time.time() - launch_time, 2)
         state, done_chunks, status = run_chunks(
             plan, programs.chunk, state, done_chunks, hooks, evaluations, evals, saves, interrupt, get=placement.get,
-            any_process=placement.any_process, num_seeds=len(seeds), stop_after_chunks=stop_after_chunks, due=owed)
+            any_process=placement.any_process, num_seeds=len(seeds), stop_after_chunks=stop_after_chunks)
     writer.close()
     mngr.close()
     env_steps = done_chunks * plan.steps_per_chunk

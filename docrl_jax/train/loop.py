@@ -199,7 +199,7 @@ class Evaluations:
 
     def __init__(self, programs, placement, seeds: list[int], hooks: Hooks, trained_actor: bool = False,
                  pending: dict | None = None):
-        self.evaluate, self.starts, self.ready = programs.evaluate, programs.eval_starts, programs.evaluation_ready
+        self.evaluate, self.starts = programs.evaluate, programs.eval_starts
         self.placement, self.seeds, self.hooks = placement, seeds, hooks
         self.alongside, self.trained_actor = programs.eval_starts is not None, trained_actor
         self.pending = metrics.empty_pending(len(seeds)) if pending is None else pending
@@ -222,8 +222,8 @@ class Evaluations:
 
     def begin(self, state, steps: int):
         """(state asking the next chunk to begin the evaluation of `steps`, True), or (state, False)
-        while another is still running or the evaluation's programs are still being built."""
-        if self.running is not None or not self.ready():
+        while another is still running."""
+        if self.running is not None:
             return state, False
         self.running = self._capture(state, steps)
         lanes = state.evals.replace(begin=self.placement.put_seeds(np.ones(len(self.seeds), bool)),
@@ -248,14 +248,11 @@ class Evaluations:
         self.hooks.record(*captured, results, {}, lambda: get(state.evals.params))
 
     def first(self, state):
-        """The evaluation at step 0 of a fresh run: returns the state to train on and whether the
-        evaluation is still due (alongside, when its programs are still being built: it begins after
-        the first chunk that ends with them there, on the policy as it is then)."""
+        """The evaluation at step 0 of a fresh run: returns the state to train on."""
         if self.alongside:
-            state, began = self.begin(state, 0)
-            return state, not began
+            return self.begin(state, 0)[0]
         self.now(state, 0)
-        return state, False
+        return state
 
 
 class Schedule(NamedTuple):
@@ -277,19 +274,18 @@ def schedule(config) -> Schedule:
 def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: Hooks, evaluations: Evaluations,
                evals: Cadence, saves: Cadence | None, interrupt: Interrupt, get: Callable = jax.device_get,
                any_process: Callable[[bool], bool] = bool, hp: tuple = (), num_seeds: int = 1,
-               stop_after_chunks: int | None = None, due: bool = False):
+               stop_after_chunks: int | None = None):
     """Runs chunks from `done_chunks` to the end of the run. Evaluates (`evaluations`) when `evals` is
     due and at the end; saves (when `hooks.save`) when `saves` is due, at the end and when stopped.
     `get` brings the chunk's metrics to the host and `any_process` tells whether any process was
     interrupted (`SeedPlacement.get` and `.any_process`: several processes stop together).
-    `stop_after_chunks` acts like a Ctrl-C after that many chunks of this call (tests). `due`: an
-    evaluation is owed from before the first chunk (`Evaluations.first`). Returns (state,
-    done_chunks, status)."""
+    `stop_after_chunks` acts like a Ctrl-C after that many chunks of this call (tests). Returns
+    (state, done_chunks, status)."""
     eta = Eta()
     total = plan.num_chunks * plan.steps_per_chunk
     env_steps = done_chunks * plan.steps_per_chunk
     status, this_call = EXIT_OK, 0
-    # `due`: an evaluation is due; alongside, it waits until the running one has ended and its programs are there.
+    due = False   # an evaluation is due; alongside, it waits until the running one has ended
 
     def paused(action, *args):
         """An evaluation training waits for: its time counts towards the ETA."""

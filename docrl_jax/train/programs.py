@@ -22,7 +22,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, NamedTuple
 
 import jax
@@ -75,11 +75,6 @@ class Programs(NamedTuple):
     origin: str = "compiled"  # "compiled" in this process, or "loaded" from the program store
     eval_starts: Callable | None = None  # keys (S, 2) -> the evaluation lanes' first states (train.eval_alongside)
 
-    def evaluation_ready(self) -> bool:
-        """Whether evaluate and eval_starts are there (with train.eval_alongside they are built while
-        the first chunks run: `Pending`)."""
-        return all(p.ready() for p in (self.evaluate, self.eval_starts) if isinstance(p, Pending))
-
 
 def program_config(config: Config, traced: bool = False) -> Config:
     """The config with every field that does not shape the compiled programs set to a constant, so
@@ -101,55 +96,35 @@ def hparams_shape(num_rows: int, config: Config):
 # The one memo of compiled programs, by their store entry names: a resume or a second run of the
 # same shapes in one process compiles nothing.
 _COMPILED: dict = {}
-# The programs an evaluation alongside training needs (train.eval_alongside): obtained after init and
-# chunk, beside the first chunks, so a launch starts training without waiting for them.
-DEFERRED = ("evaluate", "eval_starts")
-
-
-class Pending:
-    """A program still being compiled or loaded in a background thread. Called, it waits for the
-    program and runs it; `ready()` says whether it is there, without waiting. A failure to build it
-    is raised by the call."""
-
-    def __init__(self, job: Future, what: str):
-        self._job, self.what = job, what
-
-    def ready(self) -> bool:
-        return self._job.done()
-
-    def __call__(self, *args):
-        return self._job.result()[self.what](*args)
 
 
 def compile_programs(config: Config, devices: tuple | None = None, traced: bool = False) -> tuple[Programs, float]:
     """The run's programs for `devices` (the tuple from `sharding.seed_devices`; None resolves
     train.devices here, for callers without a run's placement). Memoised in the process; else loaded
     from the program store when an earlier launch built them (docrl_jax.train.program_store: no env
-    build, no tracing); else compiled ahead of time, several at once in threads (XLA compiles them in
-    parallel), and stored (in a background thread). With train.eval_alongside, evaluate and
-    eval_starts are `Pending`: they are built after init and chunk, while training runs, and the
-    first evaluation begins once they are there (`Programs.evaluation_ready`). Returns the programs
-    and the seconds this call spent on those it waited for (0 when memoised)."""
+    build, no tracing); else compiled ahead of time, all at once in threads (XLA compiles them in
+    parallel), and stored (in a background thread). Returns them and the seconds this call spent (0 when memoised)."""
     devices = sharding.seed_devices(config.train)[0] if devices is None else devices
     config = program_config(config, traced)
     # The store's entry names describe the programs, so they key the memo too: the evaluation alone
-    # (a sweep and a plain run of the same shapes share it) and the whole set.
+    # (a sweep and a plain run of the same shapes share it) and the three together.
     names = store_names(config, devices, traced)
     whole = tuple(names.values())
     if whole in _COMPILED:
         return _COMPILED[whole], 0.0
     t0 = time.time()
-    builder = _Builder(config, devices, traced, names)
-    later = [what for what in DEFERRED if what in names] if config.train.eval_alongside else []
-    got, origin = builder.obtain([what for what in names if what not in later])
-    state_shape = builder.state_shape(got["init"])
-    if later:
-        pool = ThreadPoolExecutor(1, thread_name_prefix="docrl_jax evaluation programs")
-        job = pool.submit(lambda: builder.obtain(later)[0])
-        pool.shutdown(wait=False)   # the thread builds them and ends; the process waits for it at exit
-        got.update({what: Pending(job, what) for what in later})
-    _COMPILED[names["evaluate"]] = got["evaluate"]
-    _COMPILED[whole] = Programs(got["init"], got["chunk"], got["evaluate"], state_shape, origin, got.get("eval_starts"))
+    store = program_store.folder()
+    compiled = _load(store, names, devices) if store is not None else None
+    origin = "loaded"
+    if compiled is None:
+        compiled, storable, origin = *_compile(config, devices, traced, names["evaluate"]), "compiled"
+        if store is not None and storable:  # written beside the run's start, not before it
+            program_store.save_in_background(store, {names[what]: compiled[what] for what in storable})
+    _COMPILED[names["evaluate"]] = compiled["evaluate"]
+    # The runner state's shapes, as the init program returns them (what a checkpoint is restored into).
+    state_shape = jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype), compiled["init"].out_info)
+    _COMPILED[whole] = Programs(compiled["init"], compiled["chunk"], compiled["evaluate"], state_shape, origin,
+                                compiled.get("eval_starts"))
     return _COMPILED[whole], time.time() - t0
 
 
@@ -168,71 +143,34 @@ def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[st
             for what, (c, kind) in described.items()}
 
 
-class _Builder:
-    """Obtains some of a run's programs: from the memo (the evaluation), the program store, or the
-    compiler. The env is built and the functions traced only when something must be compiled, at
-    most once for all the run's programs."""
-
-    def __init__(self, config: Config, devices: tuple, traced: bool, names: dict[str, str]):
-        self.config, self.devices, self.traced, self.names = config, devices, traced, names
-        self.store = program_store.folder()
-        self._jitted = self._shape = None
-
-    def obtain(self, which: list[str]) -> tuple[dict, str]:
-        """{name: program} for `which`, and "loaded" (every one not memoised came from the store) or
-        "compiled"."""
-        got = {w: _COMPILED[self.names[w]] for w in which if w == "evaluate" and self.names[w] in _COMPILED}
-        todo = {w: self.names[w] for w in which if w not in got}
-        loaded = _load(self.store, todo, self.devices) if self.store is not None and todo else None
-        if loaded is not None or not todo:
-            return {**got, **(loaded or {})}, "loaded"
-        compiled, storable = self._compile(list(todo))
-        if self.store is not None and storable:  # written beside the run's start, not before it
-            program_store.save_in_background(self.store, {todo[w]: compiled[w] for w in storable})
-        return {**got, **compiled}, "compiled"
-
-    def state_shape(self, init=None):
-        """The runner state's shapes, as the init program returns them (what a checkpoint is restored
-        into and the chunk takes): from a built `init`, else by tracing it."""
-        if self._shape is None:
-            self._shape = (jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype), init.out_info)
-                           if init is not None else jax.eval_shape(self._functions()[0], *self._init_args()))
-        return self._shape
-
-    def _functions(self):
-        if self._jitted is None:
-            self._jitted = _jitted(self.config, self.devices, self.traced)
-        return self._jitted
-
-    def _init_args(self) -> tuple:
-        n = self.config.train.num_seeds
-        hp = (hparams_shape(n, self.config),) if self.traced else ()
-        return jax.ShapeDtypeStruct((n, 2), jnp.uint32), jax.ShapeDtypeStruct((), jnp.int32), *hp
-
-    def _compile(self, which: list[str]) -> tuple[dict, list]:
-        """`which` traced and compiled, in threads, and the names of those the store may keep
-        (program_store.compile_lowered)."""
-        init, chunk, evaluate, eval_starts = self._functions()
-        keys, total, *hp = self._init_args()
-        lowerings = {"init": lambda: init.lower(keys, total, *hp),
-                     "chunk": lambda: chunk.lower(self.state_shape(), *hp),
-                     "evaluate": lambda: evaluate.lower(self.state_shape().agent.actor_average, keys),
-                     "eval_starts": lambda: eval_starts.lower(keys)}
-        self.state_shape()   # traced once, before the threads that read it
-        with ThreadPoolExecutor(len(which)) as pool:
-            done = {w: pool.submit(program_store.compile_lowered, lowerings[w], self.devices[0].platform)
-                    for w in which}
-            compiled = {w: f.result() for w, f in done.items()}
-        return {w: c for w, (c, _) in compiled.items()}, [w for w, (_, ok) in compiled.items() if ok]
-
-
 def _load(store, names: dict, devices) -> dict | None:
-    """The programs `names` ({name: store entry}) from the store, loaded in threads, or None if any is
-    missing."""
+    """All three programs from the store, loaded in threads, or None if any is missing."""
     with ThreadPoolExecutor(len(names)) as pool:
         done = {what: pool.submit(program_store.load, store, name, devices) for what, name in names.items()}
         loaded = {what: f.result() for what, f in done.items()}
     return loaded if all(p is not None for p in loaded.values()) else None
+
+
+def _compile(config: Config, devices: tuple, traced: bool, eval_key) -> tuple[dict, list]:
+    """init, chunk, evaluate (and eval_starts) traced and compiled, in threads (evaluate reused from the
+    memo), and the names of those the store may keep (program_store.compile_lowered)."""
+    init, chunk, evaluate, eval_starts = _jitted(config, devices, traced)
+    n = config.train.num_seeds
+    keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
+    total = jax.ShapeDtypeStruct((), jnp.int32)
+    hp = (hparams_shape(n, config),) if traced else ()
+    state_shape = jax.eval_shape(init, keys, total, *hp)
+    lowerings = {"init": lambda: init.lower(keys, total, *hp), "chunk": lambda: chunk.lower(state_shape, *hp)}
+    if eval_key not in _COMPILED:
+        lowerings["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys)
+    if eval_starts is not None:
+        lowerings["eval_starts"] = lambda: eval_starts.lower(keys)
+    with ThreadPoolExecutor(len(lowerings)) as pool:
+        done = {name: pool.submit(program_store.compile_lowered, lower, devices[0].platform)
+                for name, lower in lowerings.items()}
+        compiled = {name: f.result() for name, f in done.items()}
+    return ({"evaluate": _COMPILED.get(eval_key), **{name: c for name, (c, _) in compiled.items()}},
+            [name for name, (_, ok) in compiled.items() if ok])
 
 
 def _jitted(config: Config, devices: tuple, traced: bool):

@@ -278,10 +278,10 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     hooks = Hooks(check=check, record=record, show=lambda *_: None)
     evaluations = Evaluations(programs, placement, seeds, hooks, trained_actor=any(trained_actor))
     evals = Cadence(t.eval_every, t.eval_every_minutes)
-    state, owed = evaluations.first(state)
+    state = evaluations.first(state)
     evals.done()
     _, _, status = run_chunks(plan, programs.chunk, state, 0, hooks, evaluations, evals, None, interrupt,
-                              get=placement.get, hp=(hp,), num_seeds=len(rows), due=owed)
+                              get=placement.get, hp=(hp,), num_seeds=len(rows))
     return status
 
 
