@@ -5,7 +5,7 @@ in a fresh process (XLA reads its flags once), interleaved over rounds.
         --variant base= --variant graphs=--xla_gpu_enable_command_buffer=+WHILE,+CONDITIONAL --out OUT
 
 Each process compiles the train command's programs (`docrl_jax.train.programs.compile_programs`,
-compilation cache off, so every variant really compiles), runs init and `--warmup` chunks (past
+compilation cache off, or with `--cache fresh` an empty one of its own: every variant really compiles), runs init and `--warmup` chunks (past
 `train.start_steps`, so the timed chunks learn), then times `--chunks` chunks and `--evals`
 evaluations on fixed keys, of the initial actor (the same in every variant: one fixed workload) and
 of the trained one. Reported per variant: compile seconds, median chunk seconds and env steps/s,
@@ -22,6 +22,7 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -33,8 +34,9 @@ def child(config_name: str, sets: list[str], warmup: int, chunks: int, evals: in
     from docrl_jax.config import load_config
     from docrl_jax.train.loop import schedule
     from docrl_jax.train.evaluation import eval_keys
-    from docrl_jax.train.programs import compile_programs
+    from docrl_jax.train.programs import compile_programs, enable_compile_cache
 
+    enable_compile_cache(os.environ["DOCRL_JAX_COMPILE_CACHE"])   # 'off', or a fresh folder (--cache fresh)
     config = load_config(config_name, sets)
     t0 = time.time()
     programs, _ = compile_programs(config)
@@ -82,6 +84,9 @@ def main() -> None:
     p.add_argument("--chunks", type=int, default=5)
     p.add_argument("--evals", type=int, default=3)
     p.add_argument("--set", action="append", default=[], dest="sets", metavar="KEY=VALUE")
+    p.add_argument("--cache", choices=["off", "fresh"], default="off",
+                   help="the compilation cache (and program store) of each child: off, or an empty folder of "
+                        "its own (what a cold launch of the train command compiles with)")
     p.add_argument("--out", required=True)
     p.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     a = p.parse_args()
@@ -97,7 +102,7 @@ def main() -> None:
     for _ in range(a.rounds):
         for name, flags in variants.items():
             env = {**os.environ, "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} {flags}".strip(),
-                   "DOCRL_JAX_COMPILE_CACHE": "off"}
+                   "DOCRL_JAX_COMPILE_CACHE": "off" if a.cache == "off" else tempfile.mkdtemp(prefix="xla_ab_cache_")}
             cmd = [sys.executable, __file__, "--child", "--config", a.config, "--warmup", str(a.warmup),
                    "--chunks", str(a.chunks), "--evals", str(a.evals), "--out", a.out,
                    *[x for s in a.sets for x in ("--set", s)]]
