@@ -237,6 +237,24 @@ def apply_gradients(tx: optax.GradientTransformation, grads, opt_state, params, 
     return optax.apply_updates(params, updates), opt_state
 
 
+def critic_step(state, loss_fn, tx: optax.GradientTransformation, scale, lr, *args):
+    """One gradient step of the twin critics on `loss_fn(critic params, *args) -> (loss, info)`, the
+    update counted. Returns (state, loss, info)."""
+    (loss, info), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.critic, *args)
+    params, opt_state = apply_gradients(tx, grads, state.critic_opt, state.critic, scale, lr)
+    return state.replace(critic=params, critic_opt=opt_state, updates=state.updates + 1), loss, info
+
+
+def delayed_policy_step(state, policy_step: Callable, fixed_freq: int, progress, skipped):
+    """The delayed policy update (TD3's, also DoCRL-S's): `policy_step(state) -> (state, out)` runs on
+    every `policy_freq`-th critic update, otherwise the state stays and `skipped` (zeros shaped like
+    `out`) stands for its output. Returns (state, out, the frequency, whether it ran)."""
+    freq = policy_freq(fixed_freq, progress)
+    run = (state.updates % freq) == 0
+    state, out = jax.lax.cond(run, policy_step, lambda s: (s, skipped), state)
+    return state, out, freq, run
+
+
 def critic_regression(q: jax.Array, target: jax.Array, mask: jax.Array) -> jax.Array:
     """sum over critic heads of the masked mean squared TD error; q [num, T, B], target [T, B]."""
     m = mask.astype(q.dtype)

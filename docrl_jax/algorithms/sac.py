@@ -20,7 +20,8 @@ import jax.numpy as jnp
 
 from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients,
                                          critic_regression, init_agent_state, lr_scale_delta, masked_mean,
-                                         nstep_targets, policy_freq, run_actor, soft_update, split_batch)
+                                         critic_step, delayed_policy_step, nstep_targets, run_actor, soft_update,
+                                         split_batch)
 from docrl_jax.config import Config
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import make_actor, make_critic
@@ -94,11 +95,8 @@ def make_sac(config: Config) -> Agent:
         eps_next = jax.random.normal(k_next, seq.action.shape)
         eps_pi = jax.random.normal(k_pi, seq.action.shape)
         scale = lr_scale_delta(hp.lr_decay, progress)
-        (c_loss, c_info), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(
-            state.critic, critic, actor, state, seq, eps_next, a_cfg, memory, hp)
-        critic_params, critic_opt = apply_gradients(critic_tx, c_grads, state.critic_opt, state.critic, scale,
-                                                    hp.critic_lr)
-        state = state.replace(critic=critic_params, critic_opt=critic_opt, updates=state.updates + 1)
+        state, c_loss, c_info = critic_step(state, critic_loss, critic_tx, scale, hp.critic_lr,
+                                            critic, actor, state, seq, eps_next, a_cfg, memory, hp)
 
         def policy_step(s: AgentState):
             (a_loss, logp), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
@@ -111,10 +109,8 @@ def make_sac(config: Config) -> Agent:
                           critic_target=soft_update(s.critic_target, s.critic, hp.tau, hp.tau_keep))
             return s, (a_loss, al_loss)
 
-        freq = policy_freq(a_cfg.policy_freq, progress)
-        do_policy = (state.updates % freq) == 0
-        state, (a_loss, al_loss) = jax.lax.cond(do_policy, policy_step,
-                                                lambda s: (s, (jnp.zeros(()), jnp.zeros(()))), state)
+        state, (a_loss, al_loss), freq, do_policy = delayed_policy_step(state, policy_step, a_cfg.policy_freq,
+                                                                        progress, (jnp.zeros(()), jnp.zeros(())))
         metrics = {"critic_loss": c_loss, "actor_loss": a_loss, "alpha_loss": al_loss, "q": c_info["q"],
                    "alpha": jnp.exp(state.log_alpha), "policy_freq": freq,
                    "actor_updated": do_policy.astype(jnp.float32)}
