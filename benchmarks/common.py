@@ -45,3 +45,23 @@ def write_results(out_dir: str, stem: str, title: str, meta: dict, rows: list[di
     with open(os.path.join(out_dir, f"{stem}.md"), "w") as f:
         f.write(table)
     return table
+
+
+def time_chunks(chunk, state, repeats: int, get=lambda tree: tree):
+    """One warm-up call of the compiled `chunk` (it fills the buffer, so every later iteration learns),
+    then `repeats` timed calls. Returns (state, seconds of each call, the fewest learning iterations
+    of any seed in each: `get` brings a call's metrics to the host)."""
+    import time
+
+    import jax
+    import numpy as np
+    state, m = chunk(state)
+    jax.block_until_ready(m)
+    times, learn = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        state, m = chunk(state)
+        jax.block_until_ready(m)
+        times.append(time.perf_counter() - t0)
+        learn.append(int(np.min(get(m["learn_iters"]))))
+    return state, times, learn

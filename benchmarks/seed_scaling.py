@@ -41,10 +41,11 @@ def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters
     import jax
     import numpy as np
 
+    from common import time_chunks
     from docrl_jax import sharding
-    from docrl_jax.train.programs import compile_programs
     from docrl_jax.config import load_config
     from docrl_jax.train import make_trainer
+    from docrl_jax.train.programs import compile_programs
 
     num_seeds = seeds_per_device * devices
     overrides = [f"env.num_envs={num_envs}", f"train.log_every={num_envs * iters}", "train.start_steps=0",
@@ -58,16 +59,7 @@ def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters
     compile_s = time.perf_counter() - t0
     keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in range(num_seeds)]))
     state = programs.init(keys, placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32)))
-    compiled = programs.chunk
-    state, m = compiled(state)  # warm-up: fills the buffer so that every later iteration learns
-    jax.block_until_ready(m)
-    times, learn = [], []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        state, m = compiled(state)
-        jax.block_until_ready(m)
-        times.append(time.perf_counter() - t0)
-        learn.append(int(np.min(placement.get(m["learn_iters"]))))
+    state, times, learn = time_chunks(programs.chunk, state, repeats, placement.get)
     med = statistics.median(times)
     peak = [(d.memory_stats() or {}).get("peak_bytes_in_use", 0) for d in placement.devices]
     upd = config.train.updates_per_step

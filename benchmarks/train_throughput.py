@@ -28,7 +28,7 @@ from docrl_jax.config import load_config
 from docrl_jax.train import make_trainer
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta, write_results  # noqa: E402
+from common import run_meta, time_chunks, write_results  # noqa: E402
 
 
 def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str]) -> dict:
@@ -44,15 +44,7 @@ def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str])
     t0 = time.perf_counter()
     chunk = jax.jit(trainer.chunk, donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t0
-    state, m = chunk(state)  # warm-up: fills the buffer so that every later iteration learns
-    jax.block_until_ready(m)
-    times, learn = [], []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        state, m = chunk(state)
-        jax.block_until_ready(m)
-        times.append(time.perf_counter() - t0)
-        learn.append(int(m["learn_iters"]))
+    state, times, learn = time_chunks(chunk, state, repeats)
     med = statistics.median(times)
     stats = jax.devices()[0].memory_stats() or {}
     upd = config.train.updates_per_step
