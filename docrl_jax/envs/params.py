@@ -86,6 +86,11 @@ class EnvParams:
                                         "(wind, model error).")
     vel_i_band: float = documented(0.03, "The integral only accumulates while |velocity error| < this (m/s): "
                                          "conditional anti-windup, so command steps do not overshoot.")
+    vel_i_rate: float = documented(0.0, "Outside the band the integral still accumulates the error clipped to "
+                                        "+-this (m/s): a rate-limited integrator that takes up a steady "
+                                        "disturbance larger than the band (a wrong mass or buoyancy, a current) in "
+                                        "seconds. 0 holds the integral outside the band, as every result in docs/ "
+                                        "was measured.")
     vel_i_limit: float = documented(3.0, "Clamp of the integral term's acceleration (m/s^2), anti-windup.")
     max_tilt_deg: float = documented(30.0, "Largest commanded tilt of the thrust axis (deg).")
     att_gain: Vec3 = documented((2.0, 2.3, 0.15), "Attitude gains (N m/rad), RotorS Lee attitude_gain (orig 2.3).")
@@ -261,8 +266,8 @@ def validate(p: EnvParams) -> EnvParams:
         if getattr(p, name) <= 0:
             _fail(name, getattr(p, name), "must be > 0")
     nonneg = ["collision_distance", "progress_reward_scale", "goal_clearance", "wall_margin", "lidar_min_range",
-              "sensor_noise_std", "vel_i_gain", "vel_i_limit", "vel_i_band", "rotor_moment_constant", "hull_volume",
-              "wind_theta", "wind_sigma", "min_goal_distance"]
+              "sensor_noise_std", "vel_i_gain", "vel_i_limit", "vel_i_band", "vel_i_rate", "rotor_moment_constant",
+              "hull_volume", "wind_theta", "wind_sigma", "min_goal_distance"]
     if p.max_goal_distance <= p.min_goal_distance:
         _fail("max_goal_distance", p.max_goal_distance, f"must exceed min_goal_distance={p.min_goal_distance}")
     for name in nonneg:

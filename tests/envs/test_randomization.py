@@ -228,6 +228,26 @@ def test_mass_scale_makes_the_hover_sink_or_climb(dr, scale):
     assert np.sign(info["position"][-1, 2] - z0) == np.sign(v) and abs(info["position"][-1, 2] - z0) > 1.0
 
 
+@pytest.mark.parametrize("scale", [1.1, 0.9])
+def test_rate_limited_integral_takes_up_a_wrong_mass(env_fns, scale):
+    """With env.vel_i_rate the integral also accumulates outside its band (at most that rate), so the
+    same wrong mass stops drifting: the integral settles where it carries the weight error the
+    feed-forward misses, m ki I = (s - 1) m g, so I = (s - 1) g / ki; and the climb or sink on the
+    way is bounded, where the default integral (the test above) never engages."""
+    rate, z0 = 0.3, (3.5 if scale > 1 else 1.0)
+    env, reset_to, rollout = env_fns(1, wind=False, dr_mass_scale=(0.8, 1.2), vel_i_rate=rate)
+    nominal = nominal_plant(env.params)
+    plant = nominal._replace(mass_scale=jnp.asarray(scale, nominal.mass_scale.dtype))
+    s0 = reset_to(jax.random.PRNGKey(0), jnp.array([0.0, 0.0, z0]), 0.0, jnp.array([0.0, 0.0, 4.5]), plant=plant)
+    final, (_, _, done, info) = rollout(s0, jnp.asarray(_hover(80), jnp.float32))
+    p = env.params
+    assert not np.asarray(done).any()
+    assert float(final.sim.vel_integral[2]) == pytest.approx((scale - 1) * physics.GRAVITY / p.vel_i_gain, rel=0.02)
+    z = np.asarray(info["position"][:, 2])
+    assert np.abs(np.asarray(info["velocity"][-10:, 2])).max() < 0.005   # stopped: no steady drift left
+    assert np.abs(z - z0).max() < 1.2 and np.sign(z[-1] - z0) == np.sign(1 - scale)
+
+
 def test_weak_rotors_in_air_fall_as_newton_says(dr):
     """Thrust limit x0.1 in air: every rotor saturates, the vehicle falls; a 1-D integration of the
     saturated rotors (first-order lag from the hover thrust), gravity and the air's vertical drag."""
