@@ -213,6 +213,26 @@ class EnvParams:
         return (z_min + 0.1, -0.3)
 
 
+# The vehicle a trained policy is bound to: its control and physics steps, its sensors' geometry, the
+# command mapping, the controller, the rotors and the hull in its media. A run trained with any of these
+# changed is evaluated, benchmarked and rendered in that vehicle (`vehicle_overrides`); everything else
+# (the tank, starts and goals, rewards, wind, currents, sensor noise, the randomisation ranges) is the
+# test's to set, so every policy meets the same trials.
+VEHICLE_FIELDS = frozenset({
+    "control_dt", "physics_dt",
+    "lidar_fov_deg", "lidar_min_range", "lidar_max_range", "sonar_fov_deg", "sonar_max_range",
+    "max_forward_speed", "max_vertical_speed", "max_yaw_change",
+    "vel_p_gain", "vel_i_gain", "vel_i_band", "vel_i_rate", "vel_i_limit", "max_tilt_deg", "att_gain", "rate_gain",
+    "rotor_max_thrust_air", "rotor_max_thrust_water", "rotor_tau_up", "rotor_tau_down", "rotor_moment_constant",
+    "water_density", "air_density", "hull_volume", "hull_height", "added_mass", "added_inertia",
+    "water_linear_drag", "water_quadratic_drag", "water_angular_drag", "air_linear_drag", "air_quadratic_drag",
+})
+
+
+def vehicle_overrides(env_overrides: dict[str, Any]) -> dict[str, Any]:
+    """The entries of a run's env overrides (its config's `env:` section) that change the vehicle."""
+    return {k: v for k, v in env_overrides.items() if k in VEHICLE_FIELDS}
+
 def param_docs() -> dict[str, str]:
     """Name -> documentation of every parameter (used by error messages and the README)."""
     return schema.field_docs(EnvParams)

@@ -213,6 +213,19 @@ def _run_config(run_dir: str | os.PathLike) -> dict:
         return yaml.safe_load(f) or {}
 
 
+def run_vehicle(run_dir: str | os.PathLike | None) -> dict:
+    """The vehicle settings of a run's config.yaml (`envs.params.VEHICLE_FIELDS`, e.g. env.vel_i_rate),
+    which its policy is flown in; {} for a built-in policy (run_dir None)."""
+    from docrl_jax.envs.params import vehicle_overrides
+    return {} if run_dir is None else vehicle_overrides(_run_config(run_dir).get("env") or {})
+
+
+def flown_env(run_dir: str | os.PathLike | None, env_overrides: dict) -> dict:
+    """The env overrides a policy is evaluated under: its run's vehicle, then the command's --env (which
+    wins: flying a policy in another vehicle is a test too)."""
+    return {**run_vehicle(run_dir), **env_overrides}
+
+
 def check_run_dir(run_dir: str | os.PathLike) -> Path:
     """Cheap checks of a run directory before load_policy: exists, is a directory, has config.yaml."""
     path = Path(run_dir)
@@ -316,6 +329,7 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
             "seed_runs": {str(i): {"run": run, "seed_index": s} for i, (run, s) in zip(seed_indices, sources)}
             if args.run is not None else {}, "trials": args.trials,
             "max_steps": args.max_steps, "seed": args.seed, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
+            "vehicles": {str(i): run_vehicle(run) for i, (run, _) in zip(seed_indices, sources)},
             "trial_spec": asdict(TrialSpec()), "nominal_yaw": NOMINAL_YAW,
             "bba_depth_phase": args.bba_depth_phase if args.policy else None,
             "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()]}
@@ -345,8 +359,9 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
                                              f"{SHORT[row['direction']]}", max_trajectories=args.figures)
 
     for scenario in cfg["scenarios"]:
-        env = rollout.make_eval_env(scenario, args.max_steps, **cfg["env"])
         for seed_index, (run, run_seed) in zip(seed_indices, sources):
+            env_kw = flown_env(run, cfg["env"])
+            env = rollout.make_eval_env(scenario, args.max_steps, **env_kw)
             if seed_index not in policies:
                 try:
                     policy, method = load_policy_for(args, env.params, run_seed, run)
@@ -364,7 +379,7 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
                     meta["policy_sources"][str(seed_index)] = policy.source
             policy, method = policies[seed_index]
             for row, trials in rollout.evaluate_policy(policy, method, [scenario], cfg["directions"], args.trials,
-                                                       args.max_steps, args.seed, cfg["env"], seed_index, report):
+                                                       args.max_steps, args.seed, env_kw, seed_index, report):
                 rows.append(row)
                 trial_rows += [{**t, "seed_index": seed_index}
                                for t in trial_table(method, scenario, row["direction"], trials)]

@@ -190,6 +190,7 @@ class Method:
     runs: list[str] | None            # None: the BBA
     sources: list[tuple[str | None, int | None]]   # (run dir, seed index within it) per seed
     seed_indices: list[int | None]    # each seed's number in the tables
+    vehicle: dict = field(default_factory=dict)   # its runs' vehicle settings (evaluate.cli.run_vehicle)
 
 
 def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[dict]:
@@ -197,12 +198,11 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
     perturbation, magnitude, scenario, direction): `summarize`'s statistics and the row's keys.
 
     `cfg`: tests, scenarios, directions, settings (`sweep_settings`), env (overrides under every
-    test), trials, layouts, max_steps, seed, which and bba_depth_phase (how the policies load).
-    `report(line)` gets a line per row."""
+    test, on top of each method's vehicle), trials, layouts, max_steps, seed, which and bba_depth_phase
+    (how the policies load). `report(line)` gets a line per row."""
     from docrl_jax.evaluate import video
-    base, steps, n = cfg["env"], cfg["max_steps"], cfg["trials"]
+    steps, n = cfg["max_steps"], cfg["trials"]
     settings = cfg["settings"]
-    host_kw = host_overrides(base, settings)
     rows = []
 
     def add(method, seed_index, test, setting, scenario, direction, trials, t0):
@@ -220,6 +220,8 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
 
     trips = Setting(NONE, "", None)
     for method in methods:
+        base = {**method.vehicle, **cfg["env"]}
+        host_kw = host_overrides(base, settings)
         for seed_index, (run, run_seed) in zip(method.seed_indices, method.sources):
             first_env = rollout.make_eval_env(cfg["scenarios"][0], steps, **host_kw)
             policy, _ = video.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"])

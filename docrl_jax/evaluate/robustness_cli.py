@@ -17,6 +17,7 @@ anything is compiled.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from datetime import datetime, timezone
@@ -129,23 +130,28 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
             raise UsageError(f"--env {key}: set by the benchmark (random and layout trips force the media of each "
                              "direction)")
     cfg["settings"] = robustness.sweep_settings(cfg["perturbations"], args.quick)
-    _check_settings(cfg, args.max_steps)
     cfg["methods"] = methods_of(args, cfg["seed_indices"])
+    _check_settings(cfg, args.max_steps)
     cfg["out"] = output_dir(args.out)
     return cfg
 
 
 def _check_settings(cfg: dict, max_steps: int) -> None:
-    """Every env the run builds is valid for every scenario it runs in (e.g. --env against the envelope)."""
-    host_kw = robustness.host_overrides(cfg["env"], cfg["settings"])
+    """Every env the run builds is valid for every scenario it runs in (e.g. --env against the envelope),
+    with each method's vehicle."""
     scenarios = [*cfg["scenarios"], 0] if "held_out_layouts" in cfg["tests"] else cfg["scenarios"]
-    for scenario in scenarios:
-        for s in cfg["settings"]:
-            for kw in ({**cfg["env"], **s.overrides}, host_kw):
-                try:
-                    rollout.eval_params(scenario, max_steps, **kw)
-                except (ValueError, TypeError) as e:
-                    raise UsageError(f"{s.perturbation} {s.magnitude} with --env in scenario {scenario}: {e}") from None
+    for vehicle in {json.dumps(m.vehicle, sort_keys=True): m.vehicle for m in cfg["methods"]}.values():
+        base = {**vehicle, **cfg["env"]}
+        host_kw = robustness.host_overrides(base, cfg["settings"])
+        for scenario in scenarios:
+            for s in cfg["settings"]:
+                for kw in ({**base, **s.overrides}, host_kw):
+                    try:
+                        rollout.eval_params(scenario, max_steps, **kw)
+                    except (ValueError, TypeError) as e:
+                        raise UsageError(f"{s.perturbation} {s.magnitude} with --env"
+                                         + (f" and the vehicle {vehicle}" if vehicle else "")
+                                         + f" in scenario {scenario}: {e}") from None
 
 
 def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
@@ -169,7 +175,11 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
             name = names.pop() if len(group) > 1 else Path(group[0]).resolve().name
         if name is not None and args.which == "best":
             name += " (best)"
-        methods.append(Method(name, list(group), sources, numbers))
+        vehicles = {json.dumps(cli.run_vehicle(run), sort_keys=True) for run in group}
+        if len(vehicles) > 1:
+            raise UsageError(f"--run {' '.join(group)}: the runs fly different vehicles ({'; '.join(sorted(vehicles))}, "
+                             "from their config.yaml env sections); give each vehicle its own --run")
+        methods.append(Method(name, list(group), sources, numbers, cli.run_vehicle(group[0])))
     if args.policy is not None:
         methods.append(Method(bba.label(args.bba_depth_phase), None, [(None, None)], [None]))
     labels = args.label or []
@@ -247,7 +257,9 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
         "tests": cfg["tests"], "scenarios": cfg["scenarios"], "directions": cfg["directions"],
         "trials": cfg["trials"], "layouts": cfg["layouts"], "max_steps": args.max_steps, "seed": args.seed,
         "quick": args.quick, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
-        "host_env_overrides": robustness.host_overrides(cfg["env"], cfg["settings"]),
+        "vehicles": {m.label: m.vehicle for m in cfg["methods"]},
+        "host_env_overrides": {m.label: robustness.host_overrides({**m.vehicle, **cfg["env"]}, cfg["settings"])
+                               for m in cfg["methods"]},
         "perturbations": {name: {"parameter": PERTURBATIONS[name].param, "doc": PERTURBATIONS[name].doc,
                                  "magnitudes": {s.magnitude: s.overrides for s in cfg["settings"]
                                                 if s.perturbation == name}}

@@ -69,13 +69,14 @@ class TrialVideo:
 
     def _write(self, params, env_steps: int) -> None:
         from docrl_jax import runs
-        from docrl_jax.config import pair_scenario
+        from docrl_jax.config import env_kwargs, pair_scenario
+        from docrl_jax.envs.params import vehicle_overrides
         from docrl_jax.envs.rendering import Renderer
         from docrl_jax.evaluate import rollout, video
         t0 = time.time()
         scenario = pair_scenario(self.config)
         if self._env is None:
-            self._env = rollout.make_eval_env(scenario, MAX_STEPS)
+            self._env = rollout.make_eval_env(scenario, MAX_STEPS, **vehicle_overrides(env_kwargs(self.config)))
             self._renderer = Renderer(self._env.mj_model, self._env.params, WIDTH, HEIGHT, antialias=False)
             self._policy = runs.actor_policy(self.config, params)   # its functions: one compiled rollout
         policy = replace(self._policy, params=params)

@@ -530,3 +530,28 @@ def test_old_names_say_where_evaluation_lives():
         compare_command.load_eval
     with pytest.raises((AttributeError, ImportError), match="import plot_figure3 from docrl_jax.evaluate.plotting"):
         plotting_command.plot_figure3
+
+
+def test_cli_run_is_flown_in_its_vehicle(fake_trainer, tmp_path):
+    """A run trained with a vehicle setting (env.vel_i_rate) is evaluated in that vehicle, not the
+    default one; its training-only env keys (starts, randomisation ranges) are not; --env still wins."""
+    (fake_trainer / "config.yaml").write_text(
+        "algo: oracle\nenv:\n  vel_i_rate: 0.3\n  goal_clearance: 0.6\n  dr_mass_scale: [0.8, 1.2]\n")
+    low = {"z_bounds": list(LOW_FLOOR)}
+    assert cli.flown_env(fake_trainer, low) == {"vel_i_rate": 0.3, **low}
+    assert cli.flown_env(fake_trainer, {"vel_i_rate": 0.0}) == {"vel_i_rate": 0.0}
+    assert cli.flown_env(None, low) == low
+    out = tmp_path / "out"
+    assert cli.main(["--run", str(fake_trainer), "--seed-index", "0", "--trials", str(N), "--scenarios", "1",
+                     "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "0",
+                     "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]", "--out", str(out)]) == 0
+    assert json.loads((out / "results.json").read_text())["meta"]["vehicles"] == {"0": {"vel_i_rate": 0.3}}
+    # The same trials again through the library in the rate-0.3 env: its rollout is the one the command
+    # compiled (no compile now), and the paths are the command's.
+    from docrl_jax import runs
+    policy = runs.load_policy(str(fake_trainer))
+    (row, trials), = evaluate.evaluate_policy(policy, "oracle", [1], ["air_to_water"], N, MAX_STEPS,
+                                              env_overrides={"z_bounds": LOW_FLOOR, "vel_i_rate": 0.3})
+    assert row["compile_s"] is None
+    saved = np.load(out / "trajectories_s1_air_to_water_seed0.npz")
+    np.testing.assert_array_equal(saved["positions"], trials["positions"].astype(np.float32))

@@ -55,7 +55,7 @@ def test_sweep_writes_consistent_rows(sweep):
     meta = data["meta"]
     assert meta["command"].startswith("python -m docrl_jax.robustness --policy bba")
     assert meta["versions"]["jax"] == jax.__version__ and meta["date"] and meta["trials"] == TRIALS
-    assert meta["host_env_overrides"]["dr_action_latency"] == [0, 2]
+    assert meta["host_env_overrides"]["BBA"]["dr_action_latency"] == [0, 2] and meta["vehicles"] == {"BBA": {}}
     assert meta["perturbations"]["action_latency"]["magnitudes"] == {"2 steps": {"dr_action_latency": [2, 2]}}
     assert len(data["rows"]) == len(rows) and len(data["over_seeds"]) == len(rows)
     md = (out / "robustness.md").read_text()
@@ -189,3 +189,36 @@ def test_methods_side_by_side_and_the_median_over_seeds(tmp_path):
     md = report.markdown(rows, {"trials": 4, "layouts": 0}, robustness.PERTURBATIONS)
     assert "| Wind gusts (`dr_wind_scale`) | D (3 seeds) | x2: 50 |" in md and "| B | x2: 100 |" in md
     assert report.plot(rows, tmp_path / "r.png", robustness.PERTURBATIONS).stat().st_size > 0
+
+
+def test_each_method_is_flown_in_its_runs_vehicle(tmp_path, monkeypatch):
+    """A run trained with env.vel_i_rate is benchmarked with it (under every test, beside --env); the
+    runs of one method must share their vehicle."""
+    import shutil
+    runs = {}
+    for name, extra in (("plain", ""), ("rate", "  vel_i_rate: 0.3\n")):
+        runs[name] = tmp_path / name
+        shutil.copytree(TRAINED / "td3_lstm", runs[name])
+        text = (runs[name] / "config.yaml").read_text()
+        (runs[name] / "config.yaml").write_text(text.replace("env:\n", "env:\n" + extra, 1))
+    args = robustness_cli.build_parser().parse_args(
+        ["--run", str(runs["plain"]), "--run", str(runs["rate"]), "--label", "A", "--label", "B",
+         "--perturbations", "mass", "--env", "wind=false", "--out", str(tmp_path / "o")])
+    cfg = robustness_cli.validate_args(args)
+    assert [m.vehicle for m in cfg["methods"]] == [{}, {"vel_i_rate": 0.3}]
+    built = []
+
+    class Built(Exception):
+        pass
+
+    def make_eval_env(scenario, max_steps, **kw):
+        built.append(kw)
+        raise Built
+    monkeypatch.setattr(rollout, "make_eval_env", make_eval_env)
+    with pytest.raises(Built):
+        robustness.run_benchmark(cfg["methods"][1:], cfg)
+    assert built[0]["vel_i_rate"] == 0.3 and built[0]["wind"] is False and built[0]["dr_mass_scale"] == (0.8, 1.2)
+    args = robustness_cli.build_parser().parse_args(["--run", str(runs["plain"]), str(runs["rate"]), "--label", "AB",
+                                                     "--out", str(tmp_path / "o")])
+    with pytest.raises(robustness_cli.UsageError, match="fly different vehicles"):
+        robustness_cli.validate_args(args)
