@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 
-from docrl_jax.errors import RunDirError, short_reason
+from docrl_jax.errors import RunDirError, not_the_data, short_reason
 
 CHECKPOINT_DIR = "checkpoints"
 DAMAGED_DIR = "checkpoints_damaged"   # where a resume moves the checkpoints it could not read
@@ -171,6 +171,9 @@ def restore_newest_intact(mngr: ocp.CheckpointManager, abstract_state: Any, shar
             if not isinstance(meta, dict) or not {"env_steps", "chunk", "wall_time_s", "pending"} <= set(meta):
                 raise ValueError("its meta/ holds no run record")
         except Exception as e:  # any unreadable part means the same: try the one before
+            unjudged = not_the_data(e, f"checkpoint {step} in {mngr.directory}")
+            if unjudged:   # it may be whole: resuming from an older one would throw its progress away
+                raise unjudged from None
             skipped.append((step, short_reason(e)))
             continue
         return Restored(step, state, best, meta, skipped)

@@ -40,6 +40,16 @@ def short_reason(e: BaseException, limit: int = 200) -> str:
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
+def not_the_data(e: BaseException, what: str) -> RunDirError | None:
+    """A RunDirError for a failure to read `what` that says nothing about the data (the device ran out
+    of memory: XLA's RESOURCE_EXHAUSTED), or None. Readers that take any other failure for damage
+    (and would skip, or call corrupt, a checkpoint that is whole) raise this instead."""
+    if isinstance(e, MemoryError) or "RESOURCE_EXHAUSTED" in str(e):
+        return RunDirError(f"out of device memory while reading {what}; the checkpoint itself was not found at "
+                           f"fault (is another process holding the GPU?): {short_reason(e)}")
+    return None
+
+
 def os_error_line(e: OSError) -> str:
     """One line for a file-system error: the path and the cause ('/x/metrics.csv: No space left on device')."""
     what = e.strerror or short_reason(e)

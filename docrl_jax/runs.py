@@ -24,7 +24,7 @@ import jax.numpy as jnp
 
 from docrl_jax import checkpoint
 from docrl_jax.config import Config, ConfigError, load_config
-from docrl_jax.errors import RunDirError, short_reason
+from docrl_jax.errors import RunDirError, not_the_data, short_reason
 from docrl_jax.policy import CHECKPOINT_POLICIES, Policy
 
 CONFIG_FILE = "config.yaml"
@@ -104,7 +104,7 @@ def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") 
         _, stacked, meta = checkpoint.restore(mngr, step, abstract_policy=policy_abstract(agent, config),
                                               item="best" if which == "best" else "policy")
     except Exception as e:  # orbax raises many types for unreadable data; all mean the same here
-        raise RunDirError(f"checkpoint {step} in {str(run_dir)!r} is corrupt or does not match config.yaml: "
+        raise not_the_data(e, f"checkpoint {step} in {str(run_dir)!r}") or RunDirError(f"checkpoint {step} in {str(run_dir)!r} is corrupt or does not match config.yaml: "
                           f"{short_reason(e)}") from None
     params = jax.tree.map(lambda x: x[seed_index], stacked)
     source = (describe_best(meta["best"], seed_index) + f", kept in checkpoint {step}" if which == "best"

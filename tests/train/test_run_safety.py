@@ -225,6 +225,28 @@ def test_resume_with_no_intact_checkpoint_is_one_clear_error():
     assert "no intact checkpoint" in text and "16000:" in text and "8000:" in text and len(text.splitlines()) <= 6
 
 
+def test_a_device_out_of_memory_is_not_taken_for_a_damaged_checkpoint(monkeypatch):
+    """Running out of GPU memory while reading says nothing of the checkpoint: loading a policy does not
+    call it corrupt, and resuming does not skip the newest checkpoint for an older one (which would
+    throw its progress away) nor set it aside."""
+    src = finished_run()
+    d = tmp_dir("oom_on_read")
+    shutil.rmtree(d)
+    shutil.copytree(src, d)
+
+    def restore(*a, **k):
+        raise RuntimeError("RESOURCE_EXHAUSTED: CUDA_ERROR_OUT_OF_MEMORY: out of memory")
+    monkeypatch.setattr(checkpoint, "restore", restore)
+    with pytest.raises(RunDirError, match="out of device memory while reading checkpoint 16000") as e:
+        load_policy(d)
+    assert "corrupt" not in str(e.value)
+    console, out = _console()
+    assert cli.run(easy_config(), d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
+    text = out.getvalue()
+    assert "out of device memory while reading checkpoint 16000" in text and "skipped" not in text
+    assert not (d / "checkpoints_damaged").exists() and (d / "checkpoints" / "16000").is_dir()
+
+
 # ------------------------------------------------------------------ file-system errors
 def test_a_run_directory_that_cannot_be_created_is_one_line(tmp_path):
     blocker = tmp_path / "a_file"
