@@ -42,6 +42,8 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         assert t.updates_per_step * t.total_env_steps == 200_000_000
         # training starts near the risers (the paper's W-A start is 1.05 m from one): measured for the LSTM agents only
         assert dict(c.env.overrides).get("goal_clearance", 1.0) == (0.6 if name.endswith("_lstm") else 1.0)
+        # the controller's integral outside its band (ROBUSTNESS.md): measured for the LSTM agents only
+        assert dict(c.env.overrides).get("vel_i_rate", 0.0) == (0.3 if name.endswith("_lstm") else 0.0)
     # Evaluations alongside training on a GPU for the 4,096-env defaults (BENCHMARKS.md); the paper
     # recipes keep their evaluations between chunks.
     assert c.train.eval_alongside == (not name.endswith("_paper") and jax.default_backend() != "cpu")
