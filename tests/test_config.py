@@ -57,6 +57,8 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     # one step of latency, 10 % dropouts
     assert env["dr_wind_scale"][1] >= 2 and env["dr_current_speed"][1] >= 0.25 and env["dr_motor_tau_scale"][1] >= 5
     assert env["dr_action_latency"][1] >= 1 and env["dr_obs_latency"][1] >= 1 and env["dr_beam_dropout"][1] >= 0.1
+    # a randomised mass only with the integral that takes it up (docs/ROBUSTNESS.md)
+    assert env["dr_mass_scale"] == (0.8, 1.2) and env["vel_i_rate"] == 0.3
     for key, value in env.items():
         if key.startswith("dr_"):
             assert value[0] <= value[1], key
