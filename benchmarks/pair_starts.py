@@ -1,7 +1,8 @@
 """How much the start heading decides a paper-pair score: each run's final policy on the paper's
 pairs, from the evaluator's trial starts (nominal yaw +-0.1 rad, +-0.1 m) and from the exact start
 facing a uniformly random yaw (the trainer's first evaluation test, train.eval_pair_starts: random_yaw), with the
-same trial keys, the evaluator's env (0.01 m range noise, wind) and step limit. CPU is enough.
+same trial keys, the evaluator's env (0.01 m range noise, wind; each run's own vehicle) and step limit. CPU
+is enough.
 
     python benchmarks/pair_starts.py --runs R/td3_lstm_seed0 R/td3_lstm_seed1 R/td3_lstm_seed2 --out OUT
 """
@@ -31,10 +32,11 @@ def main(argv=None) -> int:
 
     from docrl_jax import envs, evaluate
     from docrl_jax.evaluate import protocol
+    from docrl_jax.evaluate.cli import flown_env
     from docrl_jax.train import load_policy
-    env = evaluate.make_eval_env(args.scenario, 500)
     meta, rows = run_meta(), []
     for run in args.runs:
+        env = evaluate.make_eval_env(args.scenario, 500, **flown_env(run, {}))   # the run's own vehicle
         policy = load_policy(run)
         row = {"run": os.path.basename(os.path.normpath(run))}
         for direction in protocol.DIRECTIONS:
