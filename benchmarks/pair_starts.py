@@ -32,11 +32,12 @@ def main(argv=None) -> int:
 
     from docrl_jax import envs, evaluate
     from docrl_jax.evaluate import protocol
-    from docrl_jax.evaluate.cli import flown_env
+    from docrl_jax.evaluate.cli import run_vehicle
+    from docrl_jax.evaluate.rollout import flown_env
     from docrl_jax.train import load_policy
     meta, rows = run_meta(), []
     for run in args.runs:
-        env = evaluate.make_eval_env(args.scenario, 500, **flown_env(run, {}))   # the run's own vehicle
+        env = evaluate.make_eval_env(args.scenario, 500, **flown_env(run_vehicle(run), {}))   # the run's own vehicle
         policy = load_policy(run)
         row = {"run": os.path.basename(os.path.normpath(run))}
         for direction in protocol.DIRECTIONS:

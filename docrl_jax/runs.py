@@ -104,8 +104,9 @@ def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") 
         _, stacked, meta = checkpoint.restore(mngr, step, abstract_policy=policy_abstract(agent, config),
                                               item="best" if which == "best" else "policy")
     except Exception as e:  # orbax raises many types for unreadable data; all mean the same here
-        raise not_the_data(e, f"checkpoint {step} in {str(run_dir)!r}") or RunDirError(f"checkpoint {step} in {str(run_dir)!r} is corrupt or does not match config.yaml: "
-                          f"{short_reason(e)}") from None
+        what = f"checkpoint {step} in {str(run_dir)!r}"
+        raise not_the_data(e, what) or RunDirError(f"{what} is corrupt or does not match config.yaml: "
+                                                   f"{short_reason(e)}") from None
     params = jax.tree.map(lambda x: x[seed_index], stacked)
     source = (describe_best(meta["best"], seed_index) + f", kept in checkpoint {step}" if which == "best"
               else f"final policy of seed index {seed_index}: checkpoint {step}")

@@ -89,8 +89,8 @@ class EnvParams:
     vel_i_rate: float = documented(0.0, "Outside the band the integral still accumulates the error clipped to "
                                         "+-this (m/s): a rate-limited integrator that takes up a steady "
                                         "disturbance larger than the band (a wrong mass or buoyancy, a current) in "
-                                        "seconds. 0 holds the integral outside the band, as every result in docs/ "
-                                        "was measured.")
+                                        "seconds. 0 holds the integral outside the band (the paper and MLP configs, and "
+                                        "every result before the LSTM configs set 0.3).")
     vel_i_limit: float = documented(3.0, "Clamp of the integral term's acceleration (m/s^2), anti-windup.")
     max_tilt_deg: float = documented(30.0, "Largest commanded tilt of the thrust axis (deg).")
     att_gain: Vec3 = documented((2.0, 2.3, 0.15), "Attitude gains (N m/rad), RotorS Lee attitude_gain (orig 2.3).")
@@ -232,6 +232,7 @@ VEHICLE_FIELDS = frozenset({
 def vehicle_overrides(env_overrides: dict[str, Any]) -> dict[str, Any]:
     """The entries of a run's env overrides (its config's `env:` section) that change the vehicle."""
     return {k: v for k, v in env_overrides.items() if k in VEHICLE_FIELDS}
+
 
 def param_docs() -> dict[str, str]:
     """Name -> documentation of every parameter (used by error messages and the README)."""

@@ -132,7 +132,7 @@ def controller(p: EnvParams, veh: Vehicle, rot, vel, omega, frac, integral, comm
     i_lim = p.vel_i_limit / max(p.vel_i_gain, 1e-6)
     # Conditional integration (anti-windup): the whole error near the setpoint; farther, at most
     # vel_i_rate (0: nothing), so a command step barely winds it up and a steady disturbance still does.
-    # (vel_i_rate is static: at 0 this is the very program every result in docs/ was measured with.)
+    # (vel_i_rate is static: at 0 this is the very program measured before the LSTM configs set 0.3.)
     outside = jnp.clip(err, -p.vel_i_rate, p.vel_i_rate) if p.vel_i_rate > 0 else 0.0
     integral = jnp.clip(integral + jnp.where(jnp.abs(err) < p.vel_i_band, err, outside) * dt, -i_lim, i_lim)
 

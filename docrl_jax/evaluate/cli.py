@@ -220,12 +220,6 @@ def run_vehicle(run_dir: str | os.PathLike | None) -> dict:
     return {} if run_dir is None else vehicle_overrides(_run_config(run_dir).get("env") or {})
 
 
-def flown_env(run_dir: str | os.PathLike | None, env_overrides: dict) -> dict:
-    """The env overrides a policy is evaluated under: its run's vehicle, then the command's --env (which
-    wins: flying a policy in another vehicle is a test too)."""
-    return {**run_vehicle(run_dir), **env_overrides}
-
-
 def check_run_dir(run_dir: str | os.PathLike) -> Path:
     """Cheap checks of a run directory before load_policy: exists, is a directory, has config.yaml."""
     path = Path(run_dir)
@@ -322,6 +316,7 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
         seed_indices = [s for _, s in sources] if len(args.run) == 1 else list(range(len(sources)))
     # Each run's agent settings: runs with the same ones share their networks (and compiled rollout).
     agents = {run: json.dumps(_run_config(run).get("agent"), sort_keys=True) for run in args.run or []}
+    vehicles = {seed_index: run_vehicle(run) for seed_index, (run, _) in zip(seed_indices, sources)}
     rows, trial_rows = [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
             "run": args.run, "which": args.which if args.run else None, "policy": args.policy,
@@ -329,7 +324,7 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
             "seed_runs": {str(i): {"run": run, "seed_index": s} for i, (run, s) in zip(seed_indices, sources)}
             if args.run is not None else {}, "trials": args.trials,
             "max_steps": args.max_steps, "seed": args.seed, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
-            "vehicles": {str(i): run_vehicle(run) for i, (run, _) in zip(seed_indices, sources)},
+            "vehicles": {str(i): vehicle for i, vehicle in vehicles.items()},
             "trial_spec": asdict(TrialSpec()), "nominal_yaw": NOMINAL_YAW,
             "bba_depth_phase": args.bba_depth_phase if args.policy else None,
             "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()]}
@@ -360,7 +355,7 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
 
     for scenario in cfg["scenarios"]:
         for seed_index, (run, run_seed) in zip(seed_indices, sources):
-            env_kw = flown_env(run, cfg["env"])
+            env_kw = rollout.flown_env(vehicles[seed_index], cfg["env"])
             env = rollout.make_eval_env(scenario, args.max_steps, **env_kw)
             if seed_index not in policies:
                 try:

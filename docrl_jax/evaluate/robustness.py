@@ -220,7 +220,7 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
 
     trips = Setting(NONE, "", None)
     for method in methods:
-        base = {**method.vehicle, **cfg["env"]}
+        base = rollout.flown_env(method.vehicle, cfg["env"])
         host_kw = host_overrides(base, settings)
         for seed_index, (run, run_seed) in zip(method.seed_indices, method.sources):
             first_env = rollout.make_eval_env(cfg["scenarios"][0], steps, **host_kw)

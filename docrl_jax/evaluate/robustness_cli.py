@@ -141,7 +141,7 @@ def _check_settings(cfg: dict, max_steps: int) -> None:
     with each method's vehicle."""
     scenarios = [*cfg["scenarios"], 0] if "held_out_layouts" in cfg["tests"] else cfg["scenarios"]
     for vehicle in {json.dumps(m.vehicle, sort_keys=True): m.vehicle for m in cfg["methods"]}.values():
-        base = {**vehicle, **cfg["env"]}
+        base = rollout.flown_env(vehicle, cfg["env"])
         host_kw = robustness.host_overrides(base, cfg["settings"])
         for scenario in scenarios:
             for s in cfg["settings"]:
@@ -258,8 +258,8 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
         "trials": cfg["trials"], "layouts": cfg["layouts"], "max_steps": args.max_steps, "seed": args.seed,
         "quick": args.quick, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
         "vehicles": {m.label: m.vehicle for m in cfg["methods"]},
-        "host_env_overrides": {m.label: robustness.host_overrides({**m.vehicle, **cfg["env"]}, cfg["settings"])
-                               for m in cfg["methods"]},
+        "host_env_overrides": {m.label: robustness.host_overrides(rollout.flown_env(m.vehicle, cfg["env"]),
+                                                                  cfg["settings"]) for m in cfg["methods"]},
         "perturbations": {name: {"parameter": PERTURBATIONS[name].param, "doc": PERTURBATIONS[name].doc,
                                  "magnitudes": {s.magnitude: s.overrides for s in cfg["settings"]
                                                 if s.perturbation == name}}

@@ -37,6 +37,12 @@ def _eval_settings(max_steps: int, overrides: dict) -> dict:
     return kw
 
 
+def flown_env(vehicle: dict, env_overrides: dict) -> dict:
+    """The env overrides a policy is evaluated under: its run's vehicle (`evaluate.cli.run_vehicle`),
+    then the command's --env (which wins: flying a policy in another vehicle is a test too)."""
+    return {**vehicle, **env_overrides}
+
+
 def make_eval_env(scenario: int, max_steps: int = 500, **overrides):
     """The environment of the evaluation: episodes end at arrival; `max_steps` steps at most.
 

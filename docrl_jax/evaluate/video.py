@@ -238,7 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
 def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     """Checks the command line before anything is compiled; raises UsageError or RunDirError."""
     from docrl_jax.baselines.bba import DEPTH_PHASES
-    from docrl_jax.evaluate.cli import check_run_dir, flown_env, parse_env_overrides
+    from docrl_jax.evaluate import rollout
+    from docrl_jax.evaluate.cli import check_run_dir, parse_env_overrides, run_vehicle
     if args.run is None and args.policy is None:
         raise UsageError("nothing to draw: give --run RUN_DIR or --policy bba")
     if args.policy is not None and args.policy.lower() != "bba":
@@ -283,7 +284,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     except ValueError as e:   # the evaluator's UsageError
         raise UsageError(str(e)) from None
     check_writable(out)
-    return {"direction": direction, "env": flown_env(args.run, env), "out": out}
+    return {"direction": direction, "env": rollout.flown_env(run_vehicle(args.run), env), "out": out}
 
 
 def check_writable(path: Path) -> None:

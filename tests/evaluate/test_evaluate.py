@@ -538,9 +538,10 @@ def test_cli_run_is_flown_in_its_vehicle(fake_trainer, tmp_path):
     (fake_trainer / "config.yaml").write_text(
         "algo: oracle\nenv:\n  vel_i_rate: 0.3\n  goal_clearance: 0.6\n  dr_mass_scale: [0.8, 1.2]\n")
     low = {"z_bounds": list(LOW_FLOOR)}
-    assert cli.flown_env(fake_trainer, low) == {"vel_i_rate": 0.3, **low}
-    assert cli.flown_env(fake_trainer, {"vel_i_rate": 0.0}) == {"vel_i_rate": 0.0}
-    assert cli.flown_env(None, low) == low
+    vehicle = cli.run_vehicle(fake_trainer)
+    assert rollout.flown_env(vehicle, low) == {"vel_i_rate": 0.3, **low}
+    assert rollout.flown_env(vehicle, {"vel_i_rate": 0.0}) == {"vel_i_rate": 0.0}
+    assert rollout.flown_env(cli.run_vehicle(None), low) == low
     out = tmp_path / "out"
     assert cli.main(["--run", str(fake_trainer), "--seed-index", "0", "--trials", str(N), "--scenarios", "1",
                      "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "0",
