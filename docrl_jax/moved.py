@@ -3,6 +3,9 @@ with a message naming the new one, instead of a bare ModuleNotFoundError.
 
 `MOVED_MODULES` is the one list; `docrl_jax/__init__.py` installs the finder that reads it. A command
 kept at its old short name (`python -m docrl_jax.sweep`) is a real module that calls `command`.
+
+`lazy_members` is the other import rule of the package: a package's public names that live in heavy
+modules are imported when first used.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import sys
 
 # old module -> where its contents live now
 MOVED_MODULES = {
-    "docrl_jax.cli": "docrl_jax.train.cli",
+    "docrl_jax.cli": "docrl_jax.train.cli (the command line) and docrl_jax.train.run (run, resume)",
     "docrl_jax.run_dir": "docrl_jax.runs (the run directory, load_policy) and docrl_jax.train.metrics (metrics.csv rows)",
     "docrl_jax.train_eval": "docrl_jax.train.evaluation",
     "docrl_jax.best_policy": "docrl_jax.train.best_policy",
@@ -63,3 +66,17 @@ def moved_names(module_name: str, names: dict[str, str]) -> None:
             raise ImportError(f"{module_name}.{name} moved: import it from {names[name]}")
         raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
     module.__getattr__ = __getattr__
+
+
+def lazy_members(package: str, members: dict[str, str]):
+    """A module `__getattr__` (PEP 562) for `package`: each name in `members` is imported from its
+    module (the dict's value) when first used, then kept. So a package whose public names need
+    MuJoCo's MJX or Flax can be imported for its light modules alone (the train command reads its
+    config, then loads its stored programs while those heavy imports run)."""
+    def __getattr__(name: str):
+        if name not in members:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(members[name]), name)
+        setattr(sys.modules[package], name, value)
+        return value
+    return __getattr__

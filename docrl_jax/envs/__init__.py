@@ -12,10 +12,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from docrl_jax.envs import _quiet_import  # noqa: F401  (first: imports mujoco.mjx without the Warp notice)
-from docrl_jax.envs.huauv import ACTION_SIZE, DIST_SCALE, OBS_LAYOUT, OBS_SIZE, EnvState, HUAUVEnv, SimState
 from docrl_jax.envs.params import EnvParams, make_params, param_docs
-from docrl_jax.envs.wrappers import AutoResetWrapper
+from docrl_jax.moved import lazy_members
+
+# The env's names, imported on first use: a config, a run's vehicle or the trainer's command line
+# reads `docrl_jax.envs.params` without importing MuJoCo and MJX (two seconds of a launch, which the
+# trainer spends loading its stored programs meanwhile).
+__getattr__ = lazy_members(__name__, {
+    **{name: "docrl_jax.envs.huauv" for name in ("ACTION_SIZE", "DIST_SCALE", "OBS_LAYOUT", "OBS_SIZE", "EnvState",
+                                                 "HUAUVEnv", "SimState")},
+    "AutoResetWrapper": "docrl_jax.envs.wrappers"})
 
 # The paper's evaluation pairs (start, goal), "Experimental Results". Water-to-air swaps them.
 EVAL_AIR_START_GOAL = {
@@ -39,6 +45,8 @@ def eval_pair(scenario: int, direction: str) -> tuple[tuple[float, ...], tuple[f
 
 def make(scenario: int = 2, auto_reset: bool = False, **overrides: Any):
     """Builds the environment for scenario 1, 2 or 3; keyword overrides set any `EnvParams` field."""
+    from docrl_jax.envs.huauv import HUAUVEnv
+    from docrl_jax.envs.wrappers import AutoResetWrapper
     env = HUAUVEnv(make_params(scenario, **overrides))
     return AutoResetWrapper(env) if auto_reset else env
 

@@ -33,4 +33,4 @@ def import_quietly(module: str, drop: re.Pattern = WARP_MISSING):
                 sys.stdout.write(line)
 
 
-import_quietly("mujoco.mjx")
+mjx = import_quietly("mujoco.mjx")

@@ -21,8 +21,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 from flax import struct
-from mujoco import mjx
 
+from docrl_jax.envs._quiet_import import mjx  # mujoco.mjx, without its notice about the optional Warp backend
 from docrl_jax.envs import geometry, layouts, physics, randomization, sensors
 from docrl_jax.envs.params import EnvParams, MAX_LATENCY
 from docrl_jax.resources import resource_dir

@@ -13,8 +13,8 @@ import functools
 import jax
 import jax.numpy as jnp
 import numpy as np
-from mujoco import mjx
 
+from docrl_jax.envs._quiet_import import mjx  # mujoco.mjx, without its notice about the optional Warp backend
 from docrl_jax.envs.params import EnvParams
 
 NUM_BEAMS = 20
