@@ -35,7 +35,8 @@ def child(config_name: str, overrides: list, cache: str, dump: str) -> None:
     import numpy as np
 
     from docrl_jax.config import load_config
-    from docrl_jax.train.programs import compile_programs, enable_compile_cache
+    from docrl_jax.train.program_store import enable_compile_cache
+    from docrl_jax.train.programs import compile_programs
     enable_compile_cache(cache)
     config = load_config(config_name, overrides)
     t1 = time.time()

@@ -47,23 +47,23 @@ def startup(config_name: str, cache: str) -> list[dict]:
     t = _mark(marks, "interpreter start (launch -> first line)", T_LAUNCH)
     import jax
     t = _mark(marks, "import jax", t)
-    import docrl_jax.envs  # noqa: F401  (mujoco, mujoco.mjx, warp)
+    import docrl_jax.envs.huauv  # noqa: F401  (mujoco, mujoco.mjx, warp)
     t = _mark(marks, "import mujoco, mjx (docrl_jax.envs)", t)
-    import docrl_jax.train.cli  # noqa: F401  (flax, optax, orbax, rich, tensorboardX...)
+    import docrl_jax.train.run  # noqa: F401  (flax, optax, orbax, rich...)
     from docrl_jax.config import load_config
-    from docrl_jax.train import programs
+    from docrl_jax.train import program_store, programs
     from docrl_jax.train.evaluation import eval_keys
     from docrl_jax.train.trainer import make_trainer
     t = _mark(marks, "import the rest of the train command (flax, optax, orbax, rich)", t)
-    programs.enable_compile_cache(cache)
+    program_store.enable_compile_cache(cache)
     config = load_config(config_name)
     t = _mark(marks, "load and check the config", t)
     devices = jax.devices()
     t = _mark(marks, f"device initialisation ({devices[0].device_kind})", t)
-    trainer = make_trainer(programs.program_config(config))
+    trainer = make_trainer(program_store.program_config(config))
     t = _mark(marks, "make_trainer (MJCF parse, MJX model, env's first forward)", t)
     import jax.numpy as jnp
-    init, chunk, evaluate, eval_starts = programs._jitted(programs.program_config(config), (devices[0],), False)
+    init, chunk, evaluate, eval_starts = programs._jitted(program_store.program_config(config), (devices[0],), False)
     n = config.train.num_seeds
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)

@@ -34,7 +34,8 @@ def child(config_name: str, sets: list[str], warmup: int, chunks: int, evals: in
     from docrl_jax.config import load_config
     from docrl_jax.train.loop import schedule
     from docrl_jax.train.evaluation import eval_keys
-    from docrl_jax.train.programs import compile_programs, enable_compile_cache
+    from docrl_jax.train.program_store import enable_compile_cache
+    from docrl_jax.train.programs import compile_programs
 
     enable_compile_cache(os.environ["DOCRL_JAX_COMPILE_CACHE"])   # 'off', or a fresh folder (--cache fresh)
     config = load_config(config_name, sets)

@@ -83,6 +83,15 @@ def is_primary() -> bool:
 
 
 # ------------------------------------------------------------------------------------ devices
+def device_line() -> str:
+    """What a run is on, for the console: 'GPU: NVIDIA H100 80GB HBM3 (1 device)' or a CPU warning."""
+    devs = jax.devices()
+    if devs[0].platform == "cpu":
+        return (f"CPU ({os.cpu_count()} cores): no GPU found, training will be slow; the packaged defaults "
+                f"are sized for one GPU (see the ETA)")
+    return f"{devs[0].platform.upper()}: {devs[0].device_kind} ({len(devs)} device{'s' if len(devs) > 1 else ''})"
+
+
 def plan_devices(num_seeds: int, requested: int, available: int, processes: int = 1) -> tuple[int, str | None]:
     """(D, note): how many of the `available` devices (over `processes` processes, the same number
     each) the seeds are split over for `train.devices=requested` (0 = all), and a note when a

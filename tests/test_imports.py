@@ -6,6 +6,8 @@ own (the commands on top, the env at the bottom)."""
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 PKG = Path(__file__).resolve().parent.parent / "docrl_jax"
@@ -126,3 +128,14 @@ def test_scripts_compile():
         except SyntaxError as e:
             bad.append(f"{path.relative_to(root)}:{e.lineno}: {e.msg}")
     assert not bad, bad
+
+
+def test_the_train_command_reads_its_config_before_the_heavy_imports():
+    """`python -m docrl_jax.train` resolves its config and starts loading the stored programs
+    (docrl_jax.train.program_store.prefetch) before MJX, Orbax and Optax are imported, so that the
+    loads overlap those imports: the command line, the config and the store must not pull them in."""
+    code = ("import sys, docrl_jax.train.cli, docrl_jax.train.program_store, docrl_jax.config as c; "
+            "c.load_config('td3_lstm', ['env.num_envs=8']); "
+            "print(sorted(m for m in ('mujoco.mjx', 'orbax.checkpoint', 'optax') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

@@ -168,7 +168,7 @@ def test_policy_average_tau_outside_0_1_is_rejected(tau):
 
 
 def test_compile_cache_folder_default_env_flag_and_off(monkeypatch, tmp_path):
-    from docrl_jax.train import programs as cli
+    from docrl_jax.train import program_store as cli
     saved = jax.config.jax_compilation_cache_dir
     try:
         monkeypatch.delenv("DOCRL_JAX_COMPILE_CACHE", raising=False)

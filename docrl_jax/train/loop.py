@@ -1,4 +1,4 @@
-"""The one chunk loop, shared by a training run (docrl_jax.train.cli) and a sweep
+"""The one chunk loop, shared by a training run (docrl_jax.train.run) and a sweep
 (docrl_jax.train.sweep): run the compiled chunk, check its metrics, evaluate and checkpoint when
 due, show progress, and stop cleanly on Ctrl-C.
 

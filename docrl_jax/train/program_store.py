@@ -11,26 +11,42 @@ change code generation, and the bytes of docrl_jax's own source and scenes (an e
 never loads a stale program). A missing, unreadable or incompatible entry is a miss: the caller
 compiles as usual and the entry is written again. Entries are pickles, trusted like JAX's own
 cache: point the cache only at folders you write.
+
+A launch starts loading its entries early (`prefetch`), before it imports MJX, Flax and Orbax:
+loading an executable runs in XLA without Python's lock, so the two overlap. An entry therefore
+keeps the executable apart from its input and output trees, whose classes (MJX's `Data`) only the
+later imports provide.
+
+This module imports nothing heavier than JAX and the config, so the command line can start that
+prefetch first.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import hashlib
+import io
 import os
 import pickle
 import tempfile
 import threading
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import jax
 from jax.experimental import serialize_executable
 
+from docrl_jax import sharding
 from docrl_jax.resources import resource_dir, versions
 
-FORMAT = 1
+if TYPE_CHECKING:
+    from docrl_jax.config import Config
+
+# 2: (FORMAT, executable, pickled (in_tree, out_tree)); 1 pickled the trees beside the executable.
+FORMAT = 2
 FOLDER = "programs"
 MAX_ENTRIES = 60   # the most recently used entries kept (three per config and checkout)
 # Packages whose version changes the traced or compiled program.
@@ -41,9 +57,32 @@ JAX_FLAGS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_default_prng
              "jax_numpy_dtype_promotion", "jax_use_shardy_partitioner")
 
 
+# ------------------------------------------------------------------ the persistent compilation cache
+def default_compile_cache() -> str:
+    env = os.environ.get("DOCRL_JAX_COMPILE_CACHE")
+    if env:
+        return env
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "docrl_jax", "jax")
+
+
+def enable_compile_cache(path: str | None) -> str | None:
+    """Turns on JAX's persistent compilation cache in `path` (None: the default; 'off': disabled).
+    Returns the folder used, or None. Programs that compile in under a second are not stored."""
+    path = default_compile_cache() if path is None else path
+    if path.lower() in ("off", "none", ""):
+        return None
+    os.makedirs(path, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    return path
+
+
+# ------------------------------------------------------------------ the store
 def folder() -> Path | None:
     """The store of this process: `programs/` inside JAX's compilation cache folder; None when the
-    cache is off (docrl_jax.train.programs.enable_compile_cache) or the run spans several processes
+    cache is off (enable_compile_cache) or the run spans several processes
     (each holds only its part of a program, and they may share one folder: they compile)."""
     cache = jax.config.jax_compilation_cache_dir
     return Path(cache) / FOLDER if cache and jax.process_count() == 1 else None
@@ -73,23 +112,100 @@ def device_key(devices) -> tuple:
     return tuple((d.platform, d.device_kind, d.id, d.process_index) for d in devices)
 
 
+def program_config(config: Config, traced: bool = False) -> Config:
+    """The config with every field that does not shape the compiled programs set to a constant, so
+    runs that differ only in them (name, seeds, length, cadences; with `traced` the HParams) share
+    one compilation: the run length is a runner-state field and the seed keys are arguments."""
+    train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
+                                keep_checkpoints=1, devices=0, eval_trained_actor=False,
+                                eval_every_minutes=1.0, checkpoint_every_minutes=1.0, video_every=0)
+    agent = config.agent
+    if traced:
+        from docrl_jax.algorithms.common import hparams_neutral  # sweeps only: Flax is not needed before
+        agent = hparams_neutral(agent)
+    return dataclasses.replace(config, name="run", train=train, agent=agent)
+
+
+def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[str, str]:
+    """The entry names of init, chunk and evaluate (and eval_starts, with train.eval_alongside) for
+    this config and devices."""
+    config = program_config(config, traced)
+    # The evaluation's programs read no HParams and not how evaluations run: sweeps and plain runs, with
+    # evaluations alongside training or not, share them.
+    evaluation = program_config(dataclasses.replace(config, train=dataclasses.replace(config.train, eval_alongside=False)),
+                                True)
+    described = {"init": (config, traced), "chunk": (config, traced), "evaluate": (evaluation, None)}
+    if config.train.eval_alongside:
+        described["eval_starts"] = (evaluation, None)
+    return {what: key(repr(c), device_key(devices), kind, what) for what, (c, kind) in described.items()}
+
+
+# The loads `prefetch` started: a future of {entry path: future of its `_read`}, set once the
+# entries are named (which needs the backend, so it runs in the background too).
+_prefetched: Future | None = None
+
+
+def prefetch(config: Config) -> None:
+    """Starts loading the stored programs of `config` (a single-process run's) in background threads
+    and returns at once. The first `load` of each entry then takes the loaded executable instead of
+    reading it again. A launch calls this before its heavy imports (MuJoCo and MJX, Flax, Orbax: ~2.5
+    s on a GPU machine), which the loads (~3 s) overlap. The threads initialise JAX's backend, so a
+    multi-process run must not call it before jax.distributed.initialize (it then has no store).
+    Failures (an impossible train.devices, no store, a missing entry) only leave nothing prefetched:
+    the launch reports or handles them itself."""
+    def name_and_start() -> dict:
+        devices = sharding.seed_devices(config.train)[0]
+        store = folder()
+        if store is None:
+            return {}
+        paths = [store / f"{name}.bin" for name in store_names(config, devices).values()]
+        pool = ThreadPoolExecutor(len(paths), thread_name_prefix="docrl_jax program prefetch")
+        started = {str(path): pool.submit(_read, path, devices) for path in paths}
+        pool.shutdown(wait=False)
+        return started
+    global _prefetched
+    pool = ThreadPoolExecutor(1, thread_name_prefix="docrl_jax program prefetch")
+    _prefetched = pool.submit(name_and_start)
+    pool.shutdown(wait=False)
+
+
+def _read(path: Path, devices) -> tuple:
+    """The entry at `path` with its executable loaded onto `devices` (the seconds-long part, which
+    XLA runs without Python's lock): ((unloaded executable, flat argument info, no_kwargs), the
+    pickled trees). This is the first half of `serialize_executable.deserialize_and_load`, split off
+    because its second half needs the trees; the store's key holds JAX's version, and anything
+    that fails here is a miss."""
+    if devices[0].platform == "cpu" and not _cpu_kernels_ready():
+        raise LookupError("no loading on this CPU")
+    with open(path, "rb") as f:
+        fmt, payload, trees = pickle.load(f)
+    if fmt != FORMAT:
+        raise LookupError(f"entry format {fmt}")
+    unpickler = serialize_executable._JaxPjrtUnpickler(io.BytesIO(payload), devices[0].client, list(devices))
+    return unpickler.load(), trees
+
+
+def _take_prefetched(path: Path):
+    """The future of `path`'s prefetched read, or None (nothing prefetched, or not this entry)."""
+    if _prefetched is None or _prefetched.exception() is not None:
+        return None
+    return _prefetched.result().pop(str(path), None)
+
+
 def load(store: Path, name: str, devices) -> jax.stages.Compiled | None:
     """The stored program `name` loaded onto `devices`, or None when absent or unusable."""
     path = store / f"{name}.bin"
-    if devices[0].platform == "cpu" and not _cpu_kernels_ready():
-        return None
     try:
-        with open(path, "rb") as f:
-            fmt, payload, in_tree, out_tree = pickle.load(f)
-        if fmt != FORMAT:
-            return None
-        program = serialize_executable.deserialize_and_load(payload, in_tree, out_tree, backend=devices[0].client,
-                                                            execution_devices=list(devices))
-        os.utime(path)  # recently used: kept by the pruning in `save`
+        early = _take_prefetched(path)
+        (unloaded, args_info_flat, no_kwargs), trees = early.result() if early is not None else _read(path, devices)
+        in_tree, out_tree = pickle.loads(trees)
+        # The second half of deserialize_and_load, on the devices the read loaded it onto.
+        program = jax.stages.Compiled(unloaded.load(), [], in_tree.unflatten(args_info_flat), out_tree,
+                                      no_kwargs=no_kwargs)
+        with contextlib.suppress(OSError):
+            os.utime(path)  # recently used: kept by the pruning in `save`
         return program
-    except FileNotFoundError:
-        return None
-    except Exception:  # noqa: BLE001  a damaged or foreign entry is a miss; the caller compiles and rewrites it
+    except Exception:  # noqa: BLE001  a missing, damaged or foreign entry is a miss; the caller compiles and rewrites it
         return None
 
 
@@ -139,7 +255,8 @@ def save(store: Path, name: str, compiled: jax.stages.Compiled) -> bool:
         store.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=store, prefix=f".{name}.", suffix=".tmp")
         with os.fdopen(fd, "wb") as f:
-            pickle.dump((FORMAT, payload, in_tree, out_tree), f, protocol=pickle.HIGHEST_PROTOCOL)
+            pickle.dump((FORMAT, payload, pickle.dumps((in_tree, out_tree), protocol=pickle.HIGHEST_PROTOCOL)), f,
+                        protocol=pickle.HIGHEST_PROTOCOL)
         os.replace(tmp, store / f"{name}.bin")
         tmp = None
     except Exception:  # noqa: BLE001  (serialisation, pickling or the file system: the run goes on)

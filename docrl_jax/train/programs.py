@@ -19,8 +19,6 @@ run of the same shapes share it.
 
 from __future__ import annotations
 
-import dataclasses
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, NamedTuple
@@ -30,41 +28,11 @@ import jax.numpy as jnp
 from jax.sharding import NamedSharding, PartitionSpec
 
 from docrl_jax import sharding
-from docrl_jax.algorithms.common import HParams, hparams_neutral
+from docrl_jax.algorithms.common import HParams
 from docrl_jax.config import Config
 from docrl_jax.train import program_store
+from docrl_jax.train.program_store import program_config, store_names
 from docrl_jax.train.trainer import make_trainer
-
-# ------------------------------------------------------------------ the persistent compilation cache
-def default_compile_cache() -> str:
-    env = os.environ.get("DOCRL_JAX_COMPILE_CACHE")
-    if env:
-        return env
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return os.path.join(base, "docrl_jax", "jax")
-
-
-def enable_compile_cache(path: str | None) -> str | None:
-    """Turns on JAX's persistent compilation cache in `path` (None: the default; 'off': disabled).
-    Returns the folder used, or None. Programs that compile in under a second are not stored."""
-    path = default_compile_cache() if path is None else path
-    if path.lower() in ("off", "none", ""):
-        return None
-    os.makedirs(path, exist_ok=True)
-    jax.config.update("jax_compilation_cache_dir", path)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    return path
-
-
-def device_line() -> str:
-    """What the run is on, for the console: 'GPU: NVIDIA H100 80GB HBM3 (1 device)' or a CPU warning."""
-    devs = jax.devices()
-    if devs[0].platform == "cpu":
-        return (f"CPU ({os.cpu_count()} cores): no GPU found, training will be slow; the packaged defaults "
-                f"are sized for one GPU (see the ETA)")
-    return f"{devs[0].platform.upper()}: {devs[0].device_kind} ({len(devs)} device{'s' if len(devs) > 1 else ''})"
-
 
 # ------------------------------------------------------------------ the programs
 class Programs(NamedTuple):
@@ -74,17 +42,6 @@ class Programs(NamedTuple):
     state_shape: Any      # the RunnerState's shapes (what a checkpoint is restored into)
     origin: str = "compiled"  # "compiled" in this process, or "loaded" from the program store
     eval_starts: Callable | None = None  # keys (S, 2) -> the evaluation lanes' first states (train.eval_alongside)
-
-
-def program_config(config: Config, traced: bool = False) -> Config:
-    """The config with every field that does not shape the compiled programs set to a constant, so
-    runs that differ only in them (name, seeds, length, cadences; with `traced` the HParams) share
-    one compilation: the run length is a runner-state field and the seed keys are arguments."""
-    train = dataclasses.replace(config.train, seed=0, total_env_steps=1, eval_every=1, checkpoint_every=1,
-                                keep_checkpoints=1, devices=0, eval_trained_actor=False,
-                                eval_every_minutes=1.0, checkpoint_every_minutes=1.0, video_every=0)
-    agent = hparams_neutral(config.agent) if traced else config.agent
-    return dataclasses.replace(config, name="run", train=train, agent=agent)
 
 
 def hparams_shape(num_rows: int, config: Config):
@@ -126,21 +83,6 @@ def compile_programs(config: Config, devices: tuple | None = None, traced: bool 
     _COMPILED[whole] = Programs(compiled["init"], compiled["chunk"], compiled["evaluate"], state_shape, origin,
                                 compiled.get("eval_starts"))
     return _COMPILED[whole], time.time() - t0
-
-
-def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[str, str]:
-    """The program store's entry names of init, chunk and evaluate (and eval_starts, with
-    train.eval_alongside) for this config and devices."""
-    config = program_config(config, traced)
-    # The evaluation's programs read no HParams and not how evaluations run: sweeps and plain runs, with
-    # evaluations alongside training or not, share them.
-    evaluation = program_config(dataclasses.replace(config, train=dataclasses.replace(config.train, eval_alongside=False)),
-                                True)
-    described = {"init": (config, traced), "chunk": (config, traced), "evaluate": (evaluation, None)}
-    if config.train.eval_alongside:
-        described["eval_starts"] = (evaluation, None)
-    return {what: program_store.key(repr(c), program_store.device_key(devices), kind, what)
-            for what, (c, kind) in described.items()}
 
 
 def _load(store, names: dict, devices) -> dict | None:

@@ -57,7 +57,8 @@ from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import metrics
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
                                   make_console, run_chunks, schedule)
-from docrl_jax.train.programs import compile_programs, device_line, enable_compile_cache
+from docrl_jax.train.program_store import enable_compile_cache
+from docrl_jax.train.programs import compile_programs
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
 
 SWEEP_FILE = runs.SWEEP_FILE
@@ -324,7 +325,7 @@ def main(argv: list[str] | None = None) -> int:
     console.print(f"[bold]sweep:[/] {len(combos)} combinations x {combos[0].config.train.num_seeds} seeds in "
                   f"{len(groups)} program{'s' * (len(groups) > 1)}; traced keys: "
                   f"{[k for k in grid if k in TRACED_KEYS] or 'none'}; run directory {run_dir}")
-    console.print(f"[bold]device:[/] {device_line()}")
+    console.print(f"[bold]device:[/] {sharding.device_line()}")
     console.print(f"[bold]compilation cache:[/] {cache or 'off'}")
     try:
         return run_sweep(combos, groups, grid, run_dir, console)

@@ -45,12 +45,13 @@ def single(out: Path) -> None:
 
     from docrl_jax import sharding
     from docrl_jax.train import cli
+    from docrl_jax.train import run as train_run
     from docrl_jax.train.programs import compile_programs
     from docrl_jax.config import ConfigError
     assert len(jax.devices()) == 4, jax.devices()
 
     def go(name, devices, **kw):
-        return cli.run(tiny_config(devices=devices), out / name, show_progress=False, **kw)
+        return train_run.run(tiny_config(devices=devices), out / name, show_progress=False, **kw)
 
     for name, devices, other, other_devices in (("four", 4, "four_then_one", 1), ("one", 1, "one_then_four", "all")):
         assert go(name, devices, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
@@ -76,7 +77,7 @@ def single(out: Path) -> None:
         sharding.seed_devices(tiny_config(devices=3).train)
     except ConfigError as e:
         summary["three_devices_error"] = str(e)
-    summary["eight_devices_status"] = cli.run(tiny_config(devices=8), out / "eight", show_progress=False)
+    summary["eight_devices_status"] = train_run.run(tiny_config(devices=8), out / "eight", show_progress=False)
     (out / "summary.json").write_text(json.dumps(summary))
 
 
@@ -94,10 +95,11 @@ def multi(out: Path) -> int:
 
     from docrl_jax import sharding
     from docrl_jax.train import cli
+    from docrl_jax.train import run as train_run
     sharding.initialize_distributed()
     assert jax.process_count() == 2 and len(jax.devices()) == 4 and len(jax.local_devices()) == 2
     run_dir = out / "multi"
-    first = cli.run(tiny_config(), run_dir, show_progress=False, stop_after_chunks=1)
+    first = train_run.run(tiny_config(), run_dir, show_progress=False, stop_after_chunks=1)
     second = cli.main(["--run-dir", str(run_dir), "--resume", "--no-progress"])
     print(f"process {jax.process_index()}: exit codes {first} {second}", flush=True)
     return 0 if (first, second) == (cli.EXIT_INTERRUPTED, cli.EXIT_OK) else 1

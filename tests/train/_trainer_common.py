@@ -41,7 +41,7 @@ _TMP = Path(tempfile.mkdtemp(prefix="docrl_trainer_tests_"))
 @functools.lru_cache(maxsize=None)
 def finished_run(**overrides) -> Path:
     """Run directory of an uninterrupted CLI run of easy_config(**overrides)."""
-    from docrl_jax.train.cli import run
+    from docrl_jax.train.run import run
     name = "run_" + "_".join(f"{k}-{v}" for k, v in sorted(overrides.items())) if overrides else "run_default"
     run_dir = _TMP / name
     status = run(easy_config(**overrides), run_dir, show_progress=False)

@@ -98,10 +98,11 @@ def test_the_run_keeps_the_policy_of_its_best_evaluation():
 def test_a_resumed_run_keeps_the_same_best_and_old_checkpoints_have_none():
     from _trainer_common import easy_config
     from docrl_jax.train import cli
+    from docrl_jax.train import run as train_run
     seed, finished, _ = _tracking_run()
     d, config = tmp_dir("resume_best"), easy_config(train__seed=seed, **EVERY_CHUNK)
-    assert cli.run(config, d, show_progress=False, stop_after_chunks=3) == cli.EXIT_INTERRUPTED
-    assert cli.run(config, d, resume=True, show_progress=False) == cli.EXIT_OK  # the best comes from the checkpoint
+    assert train_run.run(config, d, show_progress=False, stop_after_chunks=3) == cli.EXIT_INTERRUPTED
+    assert train_run.run(config, d, resume=True, show_progress=False) == cli.EXIT_OK  # the best comes from the checkpoint
     a, b = load_policy(d, which="best"), load_policy(finished, which="best")
     assert a.source == b.source
     _assert_same(a.params, b.params)

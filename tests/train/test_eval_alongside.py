@@ -20,7 +20,7 @@ import pytest
 
 from docrl_jax.config import load_config
 from docrl_jax.runs import load_policy
-from docrl_jax.train.cli import run
+from docrl_jax.train.run import run
 from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.programs import compile_programs
 

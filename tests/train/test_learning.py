@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from _trainer_common import EASY, easy_config, finished_run, tmp_dir
 
 from docrl_jax.config import config_from_dict
-from docrl_jax.train.cli import run
+from docrl_jax.train.run import run
 
 from docrl_jax.train import make_trainer
 from docrl_jax.train.evaluation import eval_keys

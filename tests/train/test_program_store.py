@@ -25,7 +25,7 @@ def test_stored_programs_load_without_tracing_and_compute_the_same(tmp_path, mon
     config = easy_config()
     devices = (jax.devices()[0],)
     compiled, _ = programs.compile_programs(config, devices)   # compiled in this process (or memoised)
-    names = programs.store_names(config, devices)
+    names = program_store.store_names(config, devices)
     for what, name in names.items():
         assert program_store.save(tmp_path, name, getattr(compiled, what)), what
 
@@ -38,15 +38,26 @@ def test_stored_programs_load_without_tracing_and_compute_the_same(tmp_path, mon
     assert jax.tree.structure(loaded.state_shape) == jax.tree.structure(compiled.state_shape)
     assert jax.tree.leaves(loaded.state_shape) == jax.tree.leaves(compiled.state_shape)
 
+    # A launch's prefetch (the command line starts it before the heavy imports): its loads are the
+    # ones used, here with the entries deleted once they are loaded.
+    monkeypatch.setattr(programs, "_COMPILED", {})
+    monkeypatch.setattr(program_store, "_prefetched", None)
+    program_store.prefetch(easy_config(train__seed=7))
+    assert all(f.result() is not None for f in program_store._prefetched.result().values())
+    for name in names.values():
+        (tmp_path / f"{name}.bin").unlink()
+    prefetched, _ = programs.compile_programs(easy_config(train__seed=7), devices)
+    assert prefetched.origin == "loaded" and not program_store._prefetched.result()  # each taken once
+
     keys = jnp.stack([jax.random.PRNGKey(3)])
     total = jnp.asarray(4000, jnp.int32)
     results = []
-    for progs in (compiled, loaded):
+    for progs in (compiled, loaded, prefetched):
         state = progs.init(keys, total)
         ev = progs.evaluate(state.agent.actor_average, keys)
         state, m = progs.chunk(state)
         results.append((jax.device_get(state), jax.device_get(m), jax.device_get(ev)))
-    assert _leaves_equal(results[0], results[1])
+    assert _leaves_equal(results[0], results[1]) and _leaves_equal(results[0], results[2])
 
 
 def test_damaged_entries_are_misses_and_old_ones_are_pruned(tmp_path, monkeypatch):
@@ -73,15 +84,15 @@ def test_damaged_entries_are_misses_and_old_ones_are_pruned(tmp_path, monkeypatc
 
 def test_entry_names_follow_what_shapes_the_programs():
     devices = (jax.devices()[0],)
-    base = programs.store_names(easy_config(), devices)
+    base = program_store.store_names(easy_config(), devices)
     assert len(set(base.values())) == 3
     # Seeds, run length and cadences are arguments or runner-state fields: same programs.
-    assert programs.store_names(easy_config(train__seed=9, train__total_env_steps=24000, train__eval_every=7), devices) == base
+    assert program_store.store_names(easy_config(train__seed=9, train__total_env_steps=24000, train__eval_every=7), devices) == base
     # The shapes change with the envs: new init and chunk, and a new evaluation only if it changes.
-    other = programs.store_names(easy_config(env__num_envs=32), devices)
+    other = program_store.store_names(easy_config(env__num_envs=32), devices)
     assert other["init"] != base["init"] and other["chunk"] != base["chunk"]
     # A sweep's traced programs are others; they share the plain run's evaluation.
-    traced = programs.store_names(easy_config(), devices, traced=True)
+    traced = program_store.store_names(easy_config(), devices, traced=True)
     assert traced["chunk"] != base["chunk"] and traced["evaluate"] == base["evaluate"]
     # An edited checkout never loads an old entry.
     program_store.source_digest.cache_clear()
@@ -89,6 +100,6 @@ def test_entry_names_follow_what_shapes_the_programs():
         original = program_store.source_digest()
         with pytest.MonkeyPatch.context() as mp:
             mp.setattr(program_store, "source_digest", lambda: original[::-1])
-            assert programs.store_names(easy_config(), devices)["chunk"] != base["chunk"]
+            assert program_store.store_names(easy_config(), devices)["chunk"] != base["chunk"]
     finally:
         program_store.source_digest.cache_clear()

@@ -10,8 +10,10 @@ import csv
 import errno
 import io
 import os
+import re
 import shutil
 import signal
+from unittest.mock import patch
 
 import jax
 import jax.numpy as jnp
@@ -21,6 +23,7 @@ from _trainer_common import easy_config, finished_run, tmp_dir
 from docrl_jax import checkpoint
 from docrl_jax.errors import RunDirError
 from docrl_jax.train import cli, load_policy, loop
+from docrl_jax.train import run as train_run
 
 
 def _rows(run_dir):
@@ -44,7 +47,7 @@ def test_minutes_cadence_evaluates_and_checkpoints_when_env_steps_are_slow():
     d = tmp_dir("minutes")
     config = easy_config(train__eval_every=10**9, train__checkpoint_every=10**9, train__eval_every_minutes=1e-4,
                          train__checkpoint_every_minutes=1e-4, train__total_env_steps=12000)
-    assert cli.run(config, d, show_progress=False, stop_after_chunks=2) == cli.EXIT_INTERRUPTED
+    assert train_run.run(config, d, show_progress=False, stop_after_chunks=2) == cli.EXIT_INTERRUPTED
     assert [int(r["env_steps"]) for r in _rows(d)] == [0, 4000, 8000]
     assert _steps(d) == [4000, 8000]
 
@@ -76,7 +79,7 @@ def test_eta_waits_for_learning_chunks_and_counts_evaluations():
 def test_progress_line_says_no_eta_before_learning_then_one():
     console, out = _console()
     config = easy_config(train__start_steps=6000)   # chunk 1 (4,000 steps) learns on no iteration
-    assert cli.run(config, tmp_dir("eta"), console=console, show_progress=False, stop_after_chunks=3) == \
+    assert train_run.run(config, tmp_dir("eta"), console=console, show_progress=False, stop_after_chunks=3) == \
         cli.EXIT_INTERRUPTED
     lines = [line for line in out.getvalue().splitlines() if " steps/s " in line]
     assert len(lines) == 3
@@ -134,7 +137,7 @@ def test_ctrl_c_once_or_twice_saves_after_the_chunk(monkeypatch, presses):
     d = tmp_dir(f"ctrl_c_{presses}")
     _interrupting(monkeypatch, presses)
     console, out = _console()
-    assert cli.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_INTERRUPTED
+    assert train_run.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_INTERRUPTED
     text = out.getvalue()
     assert "stopping after the running chunk" in text
     assert ("still stopping" in text) == (presses == 2)
@@ -150,7 +153,7 @@ def test_a_third_ctrl_c_during_a_save_waits_for_it(monkeypatch):
     d = tmp_dir("ctrl_c_3")
     _interrupting(monkeypatch, 2, during_save=1)
     console, out = _console()
-    assert cli.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_INTERRUPTED
+    assert train_run.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_INTERRUPTED
     assert "quit without saving; newest checkpoint: env step 4,000" in out.getvalue()
     assert _steps(d) == [4000] and not list((d / "checkpoints").glob("*tmp*"))
     load_policy(d)
@@ -162,9 +165,10 @@ def test_a_directory_holding_a_run_without_checkpoint_is_not_overwritten(tmp_pat
     d.mkdir()
     (d / "config.yaml").write_text("name: first\n")
     (d / "metrics.csv").write_text("env_steps\n0\n")
-    args = cli.build_parser().parse_args(["--config", "sac_lstm", "--run-dir", str(d)])
-    with pytest.raises(RunDirError, match=r"already holds a run.*--resume.*fresh --run-dir"):
-        cli._resolve(args)
+    console = cli.make_console(file=io.StringIO(), width=200)
+    with patch.object(cli, "make_console", lambda **kw: console):
+        assert cli.main(["--config", "sac_lstm", "--run-dir", str(d), "--compile-cache", "off"]) == cli.EXIT_CONFIG
+    assert re.search(r"already holds a run.*--resume.*fresh --run-dir", console.file.getvalue())
     assert (d / "config.yaml").read_text() == "name: first\n" and (d / "metrics.csv").read_text() == "env_steps\n0\n"
     args = cli.build_parser().parse_args(["--run-dir", str(d), "--resume"])
     with pytest.raises(RunDirError, match="has no checkpoint to resume from"):
@@ -180,7 +184,7 @@ def _damaged_copy(name: str, damage) -> tuple:
     shutil.copytree(src, d)
     damage(d / "checkpoints" / "16000")
     console, out = _console()
-    status = cli.run(easy_config(), d, resume=True, console=console, show_progress=False)
+    status = train_run.run(easy_config(), d, resume=True, console=console, show_progress=False)
     return d, status, out.getvalue()
 
 
@@ -220,7 +224,7 @@ def test_resume_with_no_intact_checkpoint_is_one_clear_error():
         if f.is_file() and "state" in f.parts:
             f.write_bytes(b"garbage")
     console, out = _console()
-    assert cli.run(easy_config(), d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
+    assert train_run.run(easy_config(), d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
     text = out.getvalue()
     assert "no intact checkpoint" in text and "16000:" in text and "8000:" in text and len(text.splitlines()) <= 6
 
@@ -241,7 +245,7 @@ def test_a_device_out_of_memory_is_not_taken_for_a_damaged_checkpoint(monkeypatc
         load_policy(d)
     assert "corrupt" not in str(e.value)
     console, out = _console()
-    assert cli.run(easy_config(), d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
+    assert train_run.run(easy_config(), d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
     text = out.getvalue()
     assert "out of device memory while reading checkpoint 16000" in text and "skipped" not in text
     assert not (d / "checkpoints_damaged").exists() and (d / "checkpoints" / "16000").is_dir()
@@ -252,7 +256,7 @@ def test_a_run_directory_that_cannot_be_created_is_one_line(tmp_path):
     blocker = tmp_path / "a_file"
     blocker.write_text("")
     console, out = _console()
-    assert cli.run(easy_config(), blocker / "run", console=console, show_progress=False) == cli.EXIT_CONFIG
+    assert train_run.run(easy_config(), blocker / "run", console=console, show_progress=False) == cli.EXIT_CONFIG
     lines = [line for line in out.getvalue().splitlines() if line.strip()]
     assert lines[-1].startswith("error:") and str(blocker / "run") in lines[-1] and "Not a directory" in lines[-1]
     assert "Traceback" not in out.getvalue()
@@ -261,7 +265,7 @@ def test_a_run_directory_that_cannot_be_created_is_one_line(tmp_path):
 def test_a_full_disk_while_checkpointing_is_one_line_and_keeps_older_checkpoints(monkeypatch):
     d = tmp_dir("full_disk")
     config = easy_config(train__checkpoint_every=4000)
-    assert cli.run(config, d, show_progress=False, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
+    assert train_run.run(config, d, show_progress=False, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
     real = checkpoint.ocp.CheckpointManager.save
 
     def full(self, step, *args, **kwargs):   # what Orbax leaves when the disk fills mid-write
@@ -270,7 +274,7 @@ def test_a_full_disk_while_checkpointing_is_one_line_and_keeps_older_checkpoints
 
     monkeypatch.setattr(checkpoint.ocp.CheckpointManager, "save", full)
     console, out = _console()
-    assert cli.run(config, d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
+    assert train_run.run(config, d, resume=True, console=console, show_progress=False) == cli.EXIT_CONFIG
     monkeypatch.setattr(checkpoint.ocp.CheckpointManager, "save", real)
     error = [line for line in out.getvalue().splitlines() if line.startswith("error:")]
     assert len(error) == 1 and "cannot write checkpoint 8000" in error[0] and "No space left on device" in error[0]

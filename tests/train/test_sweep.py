@@ -145,7 +145,7 @@ def _assert_close_rows(ours, theirs):
 
 
 def test_one_combination_sweep_matches_a_plain_run():
-    """A 1-combination sweep (the easy config's own tau, traced) against cli.run of that config: the
+    """A 1-combination sweep (the easy config's own tau, traced) against docrl_jax.train.run.run of that config: the
     same computation, but not bit-identical: XLA rewrites Adam's step around a constant learning
     rate differently from a traced one (1 ulp in some weights per update; measured), and training
     amplifies that like the float rounding of vmapped seeds."""

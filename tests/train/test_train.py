@@ -18,6 +18,7 @@ from _trainer_common import easy_config, finished_run, tmp_dir
 
 from docrl_jax import checkpoint
 from docrl_jax.train import cli
+from docrl_jax.train import run as train_run
 from docrl_jax.train.programs import compile_programs
 from docrl_jax.config import config_from_dict
 from docrl_jax.errors import RunDirError
@@ -54,11 +55,11 @@ def test_resume_gives_the_same_metrics_as_an_uninterrupted_run():
     d = tmp_dir("resume")
     config = easy_config()
     # Interrupt after 1 chunk (4,000 steps: between evaluations), then after 2 more, then finish.
-    assert cli.run(config, d, show_progress=False, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
+    assert train_run.run(config, d, show_progress=False, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
     assert checkpoint.latest_step(d) == 4000
-    assert cli.run(config, d, resume=True, show_progress=False, stop_after_chunks=2) == cli.EXIT_INTERRUPTED
+    assert train_run.run(config, d, resume=True, show_progress=False, stop_after_chunks=2) == cli.EXIT_INTERRUPTED
     assert checkpoint.latest_step(d) == 12000
-    assert cli.run(config, d, resume=True, show_progress=False) == cli.EXIT_OK
+    assert train_run.run(config, d, resume=True, show_progress=False) == cli.EXIT_OK
     strip = lambda rows: [{k: v for k, v in r.items() if k != "wall_time_s"} for r in rows]
     assert strip(_rows(d)) == strip(_rows(finished_run()))
     a, b = load_policy(d), load_policy(finished_run())
@@ -174,11 +175,11 @@ def test_non_finite_loss_stops_and_keeps_the_last_good_checkpoint(capsys):
     loss overflows. The run must stop with EXIT_NONFINITE, say where, write no poisoned checkpoint or
     metrics row, and keep the last good checkpoint."""
     d = tmp_dir("nonfinite")
-    assert cli.run(easy_config(train__checkpoint_every=4000), d, show_progress=False,
+    assert train_run.run(easy_config(train__checkpoint_every=4000), d, show_progress=False,
                    stop_after_chunks=1) == cli.EXIT_INTERRUPTED
     assert checkpoint.latest_step(d) == 4000
     absurd = easy_config(train__checkpoint_every=4000, agent__actor_lr=1e30, agent__critic_lr=1e30)
-    status = cli.run(absurd, d, resume=True, console=cli.make_console(), show_progress=False)
+    status = train_run.run(absurd, d, resume=True, console=cli.make_console(), show_progress=False)
     assert status == cli.EXIT_NONFINITE
     assert re.search(r"non-finite loss at env step \d+ \(seed 0\)", capsys.readouterr().out)
     assert checkpoint.latest_step(d) == 4000

@@ -15,6 +15,7 @@ from PIL import Image
 from docrl_jax.config import ConfigError, load_config, packaged_configs_dir
 from docrl_jax.errors import RenderError
 from docrl_jax.train import cli, tb_video
+from docrl_jax.train import run as train_run
 from docrl_jax.train.loop import make_console
 
 
@@ -60,7 +61,7 @@ def test_a_machine_that_cannot_render_warns_once_and_trains_on(monkeypatch):
     d = tmp_dir("video_no_gl")
     config = easy_config(train__video_every=1, train__total_env_steps=8000)   # 3 evaluations, all due
     log = io.StringIO()
-    assert cli.run(config, d, console=make_console(file=log, width=200), show_progress=False) == cli.EXIT_OK
+    assert train_run.run(config, d, console=make_console(file=log, width=200), show_progress=False) == cli.EXIT_OK
     out = log.getvalue()
     assert out.count("no TensorBoard videos") == 1 and "MUJOCO_GL" in out, out
     assert "done: 8,000 env steps" in out and _images(d) == []
