@@ -1,6 +1,6 @@
 """Start-up of two versions of the code, launch by launch: the train command's own `startup.json`
 (launch -> compiled, -> training, -> first chunk), cold (an empty compile cache) then warm (the same
-cache again), versions interleaved within each round.
+cache again, `--warm` times), versions interleaved within each round.
 
     # here: the old code beside the new (git-ignored .old/, as for benchmarks/ab_launches.sh)
     rm -rf .old && mkdir .old && git archive REV docrl_jax configs assets | tar -x -C .old
@@ -67,6 +67,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--old", default=".old", help="the old version's checkout (docrl_jax, configs, assets)")
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--warm", type=int, default=1, help="warm launches per version and round (after its cold one)")
     ap.add_argument("--config", default="td3_lstm")
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
@@ -74,10 +75,11 @@ def main() -> None:
     rows = []
     work = tempfile.mkdtemp(prefix="ab_startup_")
     for r in range(args.rounds):
-        for side, root in roots.items():
-            cache = os.path.join(work, f"cache_{side}_{r}")
-            for state in ("cold", "warm"):
-                run_dir = os.path.join(work, f"run_{side}_{r}_{state}")
+        # cold old, cold new, then the warm launches alternating old and new
+        for i, state in enumerate(["cold"] + ["warm"] * args.warm):
+            for side, root in roots.items():
+                cache = os.path.join(work, f"cache_{side}_{r}")
+                run_dir = os.path.join(work, f"run_{side}_{r}_{state}{i}")
                 got = launch(root, cache, run_dir, args.config)
                 rows.append({"round": r, "version": side, "cache": state, **{k: got[k] for k in KEYS}})
                 print(side, state, r, got["spawn_to_first_chunk_s"], flush=True)
@@ -89,7 +91,7 @@ def main() -> None:
         json.dump({**meta, "rounds": rows, "medians": summary}, f, indent=1)
     lines = [f"# Start-up, old and new code, launch by launch ({meta['gpu']}, {meta['date']})", "",
              f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
-             f"Medians of {args.rounds} launches (s):", "",
+             f"Medians of {args.rounds} cold and {args.rounds * args.warm} warm launches per version (s):", "",
              "| version, cache | spawn -> first chunk | launch -> compiled | launch -> training | "
              "launch -> first chunk | compile or load | first evaluation row | spawn -> exit |",
              "|---|---|---|---|---|---|---|---|"]
