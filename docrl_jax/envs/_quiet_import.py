@@ -1,4 +1,5 @@
-"""Imports `mujoco.mjx` without its notice about the optional Warp backend.
+"""`mjx`: `mujoco.mjx`, imported without its notice about the optional Warp backend (the env's
+modules import MJX from here).
 
 mujoco-mjx tries `import warp` (NVIDIA Warp, an optional backend this package does not use) when
 `mujoco.mjx` is imported and `print`s "Failed to import warp: No module named 'warp'" and the same

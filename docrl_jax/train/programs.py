@@ -1,8 +1,8 @@
 """The compiled programs of a run (init, chunk, evaluate; with train.eval_alongside also eval_starts,
 the first states of an evaluation's episodes for the chunk's lanes), built for the devices the seeds are split
-over and compiled once per process; JAX's persistent compilation cache, which makes the next
-process skip compiling; and the program store beside it (docrl_jax.train.program_store), which makes
-it skip tracing too.
+over and compiled once per process. JAX's persistent compilation cache makes the next process skip
+compiling, and the program store beside it skips tracing too; both are set up in
+docrl_jax.train.program_store.
 
 On one device the programs vmap over the seeds (one seed: the unbatched program on a seed axis of
 size 1, because under vmap a per-seed `lax.cond` becomes a select that computes both branches, so
