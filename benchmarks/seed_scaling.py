@@ -5,6 +5,7 @@ at the same seeds per device (docrl_jax.sharding; the programs of docrl_jax.trai
     python benchmarks/seed_scaling.py --configs td3_lstm sac_lstm --num-envs 4096 --seeds-per-device 1 4
     python benchmarks/seed_scaling.py --device-counts 1 2 4 --num-envs 4096 --seeds-per-device 1
     python benchmarks/seed_scaling.py --smoke                           # CPU, 4 forced host devices, tiny
+    python benchmarks/seed_scaling.py --plot-only k1/seed_scaling.json k2/seed_scaling.json --out DIR  # one figure
 
 For each config, num_envs and seeds per device k, and each device count D (--device-counts,
 default {1, all}): the run
@@ -113,7 +114,17 @@ def main(argv=None) -> int:
     ap.add_argument("--smoke", action="store_true",
                     help=f"CPU check of the script: {SMOKE_DEVICES} forced host devices, num_envs 4, tiny networks, "
                          f"--iters 4 --repeats 2 (numbers mean nothing)")
+    ap.add_argument("--plot-only", nargs="+", metavar="JSON",
+                    help="measure nothing: draw the rows of these seed_scaling.json files (several invocations "
+                         "on one machine) as one figure, --out/seed_scaling.png")
     args = ap.parse_args(argv)
+    if args.plot_only:
+        runs = [json.load(open(p)) for p in args.plot_only]
+        rows = [r for run in runs for r in run["results"]]
+        os.makedirs(args.out, exist_ok=True)
+        plot(rows, os.path.join(args.out, "seed_scaling.png"),
+             f"Seeds over devices ({rows[0]['device_kind']}; dashed: perfect scaling)")
+        return 0
     if args.smoke:
         # Must precede JAX's initialisation (nothing above imports it).
         os.environ["XLA_FLAGS"] = (f"{os.environ.get('XLA_FLAGS', '')} "
