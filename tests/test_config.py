@@ -62,6 +62,10 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     for key, value in env.items():
         if key.startswith("dr_"):
             assert value[0] <= value[1], key
+    # the default's learner (measured better for the generalist than 4 updates per step with fp32 critics)
+    d = load_config("td3_lstm")
+    assert g.agent == d.agent and g.replay == d.replay
+    assert g.train.updates_per_step == d.train.updates_per_step == 8
 
 
 def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_refused():
