@@ -74,7 +74,7 @@ def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters
             "device_kind": placement.devices[0].device_kind, "overrides": overrides}
 
 
-def plot(rows: list[dict], path: str, title: str) -> None:
+def plot(rows: list[dict], path: str) -> None:
     """Seed env steps/s against devices, one line per (config, num_envs, seeds/device); dashed: D x the 1-device rate."""
     import matplotlib
     matplotlib.use("Agg")
@@ -92,7 +92,7 @@ def plot(rows: list[dict], path: str, title: str) -> None:
     ax.set_xlabel("devices")
     ax.set_ylabel("seed env steps/s (millions)")
     ax.set_xticks(sorted({r["devices"] for r in rows}))
-    ax.set_title(title, fontsize=9)
+    ax.set_title(f"Seeds over devices ({rows[0]['device_kind']}; dashed: perfect scaling)", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -122,8 +122,7 @@ def main(argv=None) -> int:
         runs = [json.load(open(p)) for p in args.plot_only]
         rows = [r for run in runs for r in run["results"]]
         os.makedirs(args.out, exist_ok=True)
-        plot(rows, os.path.join(args.out, "seed_scaling.png"),
-             f"Seeds over devices ({rows[0]['device_kind']}; dashed: perfect scaling)")
+        plot(rows, os.path.join(args.out, "seed_scaling.png"))
         return 0
     if args.smoke:
         # Must precede JAX's initialisation (nothing above imports it).
@@ -158,8 +157,7 @@ def main(argv=None) -> int:
                     rows.append(row)
                     print(json.dumps(row), flush=True)
                     table = write_results(args.out, stem, "Seeds over devices", meta, rows, columns)
-    plot(rows, os.path.join(args.out, f"{stem}.png"),
-         f"Seeds over devices ({rows[0]['device_kind']}; dashed: perfect scaling)")
+    plot(rows, os.path.join(args.out, f"{stem}.png"))
     print(table)
     return 0
 
