@@ -563,6 +563,12 @@ def env_kwargs(c: Config) -> dict[str, Any]:
     return _env_kwargs_for_params(c.env)
 
 
+def observation_size(c: Config) -> int:
+    """Floats in one observation of the run's env (`EnvParams.observation_size`: env.vertical_beams adds two)."""
+    from docrl_jax.envs import make_params
+    return make_params(c.env.scenario, **env_kwargs(c)).observation_size
+
+
 def pair_scenario(c: Config) -> int:
     """The scenario of the run's paper-pair evaluations and videos: its own, or for a procedural run
     (env.scenario 0) train.eval_pair_scenario."""

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from docrl_jax.config import Config, ConfigError, check_batch_size
-from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
+from docrl_jax.config import Config, ConfigError, check_batch_size, observation_size
+from docrl_jax.envs import ACTION_SIZE
 
 # Bytes of the critics' activations per trained step, per critic, per hidden unit, in units of one
 # float32 (4 bytes). An update keeps each hidden layer's pre-activation and ReLU output for the
@@ -46,7 +46,7 @@ def carry_size(c: Config) -> int:
 def step_bytes(c: Config) -> int:
     """Bytes of one stored (or sampled) step: obs, next obs, action, reward and carry in float32,
     plus three bool flags (terminated, truncated, episode start)."""
-    return 4 * (2 * OBS_SIZE + ACTION_SIZE + 1 + carry_size(c)) + 3
+    return 4 * (2 * observation_size(c) + ACTION_SIZE + 1 + carry_size(c)) + 3
 
 
 def replay_bytes(c: Config) -> int:

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
+from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import unroll
 
 
@@ -212,10 +212,11 @@ def adam(lr: float) -> optax.GradientTransformation:
     return optax.adam(lr)
 
 
-def init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx) -> "AgentState":
-    """Fresh actor and critics (targets start equal to them) with their optimiser states."""
+def init_agent_state(key, obs_size: int, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx) -> "AgentState":
+    """Fresh actor and critics for observations of `obs_size` floats (targets start equal to them) with
+    their optimiser states."""
     k_a, k_c = jax.random.split(key)
-    obs, act = jnp.zeros((1, OBS_SIZE)), jnp.zeros((1, ACTION_SIZE))
+    obs, act = jnp.zeros((1, obs_size)), jnp.zeros((1, ACTION_SIZE))
     actor_params = actor.init(k_a, actor.init_carry((1,)), obs)
     critic_params = critic.init(k_c, obs, act)
     return AgentState(actor=actor_params, actor_average=actor_params, actor_target=actor_params, critic=critic_params,

@@ -22,7 +22,7 @@ from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, a
                                          critic_regression, init_agent_state, lr_scale_delta, masked_mean,
                                          critic_step, delayed_policy_step, nstep_targets, run_actor, soft_update,
                                          split_batch)
-from docrl_jax.config import Config
+from docrl_jax.config import Config, observation_size
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import make_actor, make_critic
 
@@ -69,11 +69,12 @@ def make_sac(config: Config) -> Agent:
     actor_tx = critic_tx = alpha_tx = adam(1.0)
     burn_in = config.replay.burn_in
     hparams = HParams.from_agent_config(a_cfg)
+    obs_size = observation_size(config)
 
     def init(key, hp=None):
         hp = hparams if hp is None else hp
         log_alpha = jnp.asarray(hp.log_init_alpha, jnp.float32)
-        return init_agent_state(key, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx)
+        return init_agent_state(key, obs_size, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx)
 
     def init_noise(num_envs):
         return jnp.zeros((num_envs, ACTION_SIZE))  # unused: SAC explores by sampling

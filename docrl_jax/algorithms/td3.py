@@ -21,7 +21,7 @@ from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, a
                                          critic_regression, init_agent_state, lr_scale_delta, masked_mean,
                                          critic_step, delayed_policy_step, nstep_targets, run_actor, soft_update,
                                          split_batch)
-from docrl_jax.config import Config
+from docrl_jax.config import Config, observation_size
 from docrl_jax.envs import ACTION_SIZE
 from docrl_jax.networks import make_actor, make_critic
 
@@ -63,9 +63,10 @@ def make_td3(config: Config) -> Agent:
     actor_tx = critic_tx = adam(1.0)
     burn_in = config.replay.burn_in
     hparams = HParams.from_agent_config(a_cfg)
+    obs_size = observation_size(config)
 
     def init(key, hp=None):  # TD3/DDPG have no temperature: a constant log_alpha with a frozen optimiser
-        return init_agent_state(key, actor, critic, actor_tx, critic_tx, jnp.zeros(()), adam(0.0))
+        return init_agent_state(key, obs_size, actor, critic, actor_tx, critic_tx, jnp.zeros(()), adam(0.0))
 
     def init_noise(num_envs):
         return jnp.zeros((num_envs, ACTION_SIZE))

@@ -63,12 +63,14 @@ RENDER_MODES = ["rgb_array"]
 RENDER_FPS = 5   # one frame per control step (0.2 s) plays in real time
 
 
-def observation_space() -> spaces.Box:
-    """Bounds of the 26 observations (huauv.py): ranges and distance in [0, 1], the rest in [-1, 1]."""
-    low = -np.ones(OBS_SIZE, np.float32)
+def observation_space(size: int = OBS_SIZE) -> spaces.Box:
+    """Bounds of the observations (huauv.py; `size` is the env's `observation_size`, 28 with
+    vertical_beams): ranges and distance in [0, 1], the rest in [-1, 1]."""
+    low = -np.ones(size, np.float32)
     low[OBS_LAYOUT["ranges"]] = 0.0
     low[OBS_LAYOUT["distance"]] = 0.0
-    return spaces.Box(low=low, high=np.ones(OBS_SIZE, np.float32), dtype=np.float32)
+    low[OBS_SIZE:] = 0.0
+    return spaces.Box(low=low, high=np.ones(size, np.float32), dtype=np.float32)
 
 
 def action_space() -> spaces.Box:
@@ -168,7 +170,7 @@ class HUAUVVectorEnv(VectorEnv):
             raise ValueError("HUAUVVectorEnv always auto-resets (SAME_STEP); leave auto_reset out")
         self.num_envs = int(num_envs)
         self.env, self._reset, self._step = _programs(scenario, overrides, compiler_options)
-        self.single_observation_space = observation_space()
+        self.single_observation_space = observation_space(self.env.observation_size)
         self.single_action_space = action_space()
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, self.num_envs)
@@ -247,7 +249,7 @@ class HUAUVGymEnv(gymnasium.Env):
                  render_height: int = 240, **overrides: Any):
         self._vec = HUAUVVectorEnv(1, scenario, compiler_options, **overrides)
         self.env = self._vec.env
-        self.observation_space = observation_space()
+        self.observation_space = self._vec.single_observation_space
         self.action_space = action_space()
         self._rendering = _Rendering(self.env, render_mode, render_camera, render_width, render_height)
         self.render_mode = render_mode

@@ -10,6 +10,7 @@ Observation layout (26 floats), see `OBS_LAYOUT`:
     23    bearing of the goal in the x-y plane relative to yaw, / pi, in [-1, 1]
     24    elevation angle of the goal, / (pi / 2), in [-1, 1]
     25    3-D distance to the goal / DIST_SCALE (the tank's diagonal), clipped to [0, 1]
+    26-27 with `vertical_beams` only: the ranges up and down (body +z, -z) / the active sensor's maximum
 """
 
 from __future__ import annotations
@@ -24,14 +25,14 @@ from flax import struct
 
 from docrl_jax.envs._quiet_import import mjx  # mujoco.mjx, without its notice about the optional Warp backend
 from docrl_jax.envs import geometry, layouts, physics, randomization, sensors
-from docrl_jax.envs.params import EnvParams, MAX_LATENCY
+from docrl_jax.envs.params import PAPER_OBS_SIZE, EnvParams, MAX_LATENCY
 from docrl_jax.resources import resource_dir
 
-OBS_SIZE = 26
+OBS_SIZE = PAPER_OBS_SIZE   # with vertical_beams: 28 (`env.observation_size`, `EnvParams.observation_size`)
 ACTION_SIZE = 3
 DIST_SCALE = float(np.sqrt(9.8**2 + 9.8**2 + 6.1**2))  # inner tank diagonal, 15.14 m
 OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 23, "elevation": 24,
-              "distance": 25}
+              "distance": 25, "vertical": slice(26, 28)}   # "vertical": with vertical_beams only
 
 
 def _one_env(method: str, name: str, x: jax.Array, shape: tuple, size_name: str = "") -> jax.Array:
@@ -58,13 +59,13 @@ class SimState:
     plant: physics.Plant      # the episode's true vehicle, water and sensors (domain randomisation)
     layout: Any               # layouts.Layout of a procedural tank (scenario 0); None otherwise
     actions: jax.Array        # (L, 3) the agent's last L actions, newest first (action latency; L may be 0)
-    observations: jax.Array   # (L, 26) the last L observations, newest first (observation latency)
+    observations: jax.Array   # (L, obs size) the last L observations, newest first (observation latency)
 
 
 @struct.dataclass
 class EnvState:
     sim: SimState
-    obs: jax.Array            # (26,)
+    obs: jax.Array            # (26,), (28,) with vertical_beams
     reward: jax.Array         # ()
     done: jax.Array           # () bool
     info: dict[str, Any]
@@ -77,11 +78,11 @@ def _scene_path(scenario: int) -> str:
 class HUAUVEnv:
     """Build with `docrl_jax.envs.make(scenario, **overrides)`. Methods are pure and jit/vmap-safe."""
 
-    observation_size = OBS_SIZE
     action_size = ACTION_SIZE
 
     def __init__(self, params: EnvParams):
         self.params = params
+        self.observation_size = params.observation_size
         self.mj_model = mujoco.MjModel.from_xml_path(_scene_path(params.scenario))
         self.mj_model.opt.timestep = params.physics_dt
         # This process's first device: MJX's default, jax.devices()[0], belongs to process 0 in a
@@ -125,11 +126,17 @@ class HUAUVEnv:
         return layouts.obstacles(layout), layouts.solids(layout, self.walls), z_min
 
     def _cast(self, data, layout, position, rot, underwater):
-        """Noise-free ranges of the active fan, against the episode's tank."""
+        """Noise-free ranges of the active fan (then the vertical beams, if on), against the episode's tank."""
         model = self.mjx_model
         if self.procedural:
             model, data = layouts.place(model, data, layout, self.slot_ids)
         return sensors.cast(self.params, model, data, self.body_id, position, rot, underwater)
+
+    def _sense(self, data, layout, plant, key, position, rot, underwater):
+        """(the fan's noise-free ranges, for the collision check; what the sensors report: the fan, then
+        the vertical beams if on)."""
+        true_ranges = self._cast(data, layout, position, rot, underwater)
+        return true_ranges[:sensors.NUM_BEAMS], sensors.corrupt(self.params, plant, key, true_ranges, underwater)
 
     # ------------------------------------------------------------------ sampling
     def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, max_distance=np.inf, n=32,
@@ -200,8 +207,7 @@ class HUAUVEnv:
         wind = wind_std * jax.random.normal(k_wind, (2,)) if p.wind else jnp.zeros(2)
         rot = physics.quat_to_mat(quat)
         underwater = position[2] < 0.0
-        true_ranges = self._cast(data, layout, position, rot, underwater)
-        ranges = sensors.corrupt(p, plant, k_noise, true_ranges, underwater)
+        _, ranges = self._sense(data, layout, plant, k_noise, position, rot, underwater)
         obs = self._observe(ranges, underwater, jnp.zeros(3), position, rot, goal)
         sim = SimState(data=data, thrust=physics.hover_thrust(p, self.vehicle, position[2]),
                        vel_integral=jnp.zeros(3), wind=wind, goal=goal, step=jnp.zeros((), jnp.int32),
@@ -256,8 +262,7 @@ class HUAUVEnv:
         finite_state = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
         position = jnp.where(finite_state, position, sim.data.qpos[:3])
         underwater = position[2] < 0.0
-        true_ranges = self._cast(data, sim.layout, position, rot, underwater)
-        ranges = sensors.corrupt(p, plant, k_noise, true_ranges, underwater)
+        true_ranges, ranges = self._sense(data, sim.layout, plant, k_noise, position, rot, underwater)
 
         # 5. Events and reward (collision on the noise-free geometry).
         _, solids, lo = self._tank(sim.layout)
@@ -313,16 +318,18 @@ class HUAUVEnv:
         bearing = jnp.arctan2(jnp.sin(bearing), jnp.cos(bearing))
         elevation = jnp.arctan2(rel[2], jnp.linalg.norm(rel[:2]))
         dist = jnp.linalg.norm(rel)
-        obs = jnp.concatenate([ranges / sensors.max_range(self.params, underwater), action,
+        scaled = ranges / sensors.max_range(self.params, underwater)
+        obs = jnp.concatenate([scaled[:sensors.NUM_BEAMS], action,
                                jnp.stack([bearing / jnp.pi, elevation / (jnp.pi / 2),
-                                          jnp.minimum(dist / DIST_SCALE, 1.0)])])
+                                          jnp.minimum(dist / DIST_SCALE, 1.0)]),
+                               scaled[sensors.NUM_BEAMS:]])
         return jnp.nan_to_num(obs).astype(jnp.float32)
 
     @staticmethod
     def _info(ranges, position, velocity, rot, goal, underwater, arrived, terminated, truncated, collision,
               out_of_bounds, step, goals_reached, nonfinite_action):
-        return {
-            "ranges": ranges, "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot),
+        return {   # "ranges": the fan's; the vertical beams are in the observation only
+            "ranges": ranges[:sensors.NUM_BEAMS], "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot),
             "goal": goal, "distance": jnp.linalg.norm(goal - position), "underwater": underwater,
             "arrived": arrived, "terminated": terminated, "truncated": truncated, "collision": collision,
             "out_of_bounds": out_of_bounds, "step": step, "goals_reached": goals_reached,

@@ -18,6 +18,9 @@ from docrl_jax import schema
 from docrl_jax.schema import documented
 
 Vec3 = tuple[float, float, float]
+# The paper's observation (docrl_jax/envs/huauv.py lays it out) and the beams `vertical_beams` adds.
+PAPER_OBS_SIZE = 26
+VERTICAL_BEAMS = 2
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,11 @@ class EnvParams:
     sonar_fov_deg: float = documented(90.0, "Sonar fan width; 20 beams at linspace(-45, 45, 20) (orig 3.2).")
     sonar_max_range: float = documented(20.0, "Sonar maximum range (m); no hit reads this (orig 3.2).")
     sensor_noise_std: float = documented(0.0, "Std (m) of Gaussian range noise; 0 = noiseless (orig: 0).")
+    vertical_beams: bool = documented(False,
+        "Ours (not in the paper's state): two more beams of the active sensor along body +z and -z, an "
+        "upward and a downward range finder, appended to the observation (28 floats). They see what the "
+        "fans see (walls, floor, obstacles; not the water surface), so they show beams above or below "
+        "the vehicle, which the horizontal fans miss. The collision check on ranges stays on the fans.")
 
     # ---------------------------------------------------------------- command mapping (orig 2.3, 4.2)
     max_forward_speed: float = documented(0.25, "a0 = -1..1 maps to forward speed 0..this (m/s).")
@@ -202,6 +210,11 @@ class EnvParams:
         return (floor_top + 0.2, 4.8)
 
     @property
+    def observation_size(self) -> int:
+        """Floats in an observation: the paper's 26, plus the two vertical beams when they are on."""
+        return PAPER_OBS_SIZE + VERTICAL_BEAMS * self.vertical_beams
+
+    @property
     def water_z(self) -> tuple[float, float]:
         return self.water_band(self.bounds[0])
 
@@ -220,7 +233,7 @@ class EnvParams:
 # test's to set, so every policy meets the same trials.
 VEHICLE_FIELDS = frozenset({
     "control_dt", "physics_dt",
-    "lidar_fov_deg", "lidar_min_range", "lidar_max_range", "sonar_fov_deg", "sonar_max_range",
+    "lidar_fov_deg", "lidar_min_range", "lidar_max_range", "sonar_fov_deg", "sonar_max_range", "vertical_beams",
     "max_forward_speed", "max_vertical_speed", "max_yaw_change",
     "vel_p_gain", "vel_i_gain", "vel_i_band", "vel_i_rate", "vel_i_limit", "max_tilt_deg", "att_gain", "rate_gain",
     "rotor_max_thrust_air", "rotor_max_thrust_water", "rotor_tau_up", "rotor_tau_down", "rotor_moment_constant",

@@ -4,6 +4,9 @@ Beams leave the vehicle's centre in the body x-y plane (they tilt with the body)
 geoms (walls, floor, obstacles), never the water surface or the vehicle. The medium decides the fan:
 the vehicle's centre below z = 0 selects the sonar (orig 3.3, a hard switch). Only the active fan is
 cast: 20 rays per control step, the same count in both media, so one vmapped `mjx.ray` serves both.
+
+With `vertical_beams` two more beams of the active sensor point along body +z and -z and see what the
+fans see.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import numpy as np
 from docrl_jax.envs._quiet_import import mjx  # mujoco.mjx, without its notice about the optional Warp backend
 from docrl_jax.envs.params import EnvParams
 
-NUM_BEAMS = 20
+NUM_BEAMS = 20  # per fan; with vertical_beams `cast` returns two more ranges after them
 RAY_GEOMGROUP = (0, 1, 0, 0, 0, 0)  # only group 1 (assets/common.xml)
 
 
@@ -27,9 +30,11 @@ def beam_angles(fov_deg: float) -> np.ndarray:
 
 
 def beam_directions(p: EnvParams, rot: jnp.ndarray, underwater: jnp.ndarray) -> jnp.ndarray:
-    """World-frame unit directions (20, 3) of the active fan."""
+    """World-frame unit directions (20, 3) of the active fan, then (with vertical_beams) body +z, -z."""
     angles = jnp.where(underwater, beam_angles(p.sonar_fov_deg), beam_angles(p.lidar_fov_deg))
     local = jnp.stack([jnp.cos(angles), jnp.sin(angles), jnp.zeros_like(angles)], -1)
+    if p.vertical_beams:
+        local = jnp.concatenate([local, jnp.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])])
     return local @ rot.T
 
 
@@ -38,7 +43,8 @@ def max_range(p: EnvParams, underwater: jnp.ndarray) -> jnp.ndarray:
 
 
 def cast(p: EnvParams, model: mjx.Model, data: mjx.Data, vehicle_body: int, position, rot, underwater):
-    """Noise-free ranges (20,) in metres; a beam that hits nothing within range reads the maximum."""
+    """Noise-free ranges (20,) in metres, (22,) with vertical_beams (the fan first); a beam that hits
+    nothing within range reads the maximum."""
     dirs = beam_directions(p, rot, underwater)
     ray = functools.partial(mjx.ray, model, data, geomgroup=RAY_GEOMGROUP, flg_static=True,
                             bodyexclude=vehicle_body)

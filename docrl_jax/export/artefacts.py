@@ -22,8 +22,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from docrl_jax.config import Config
-from docrl_jax.envs import OBS_SIZE
+from docrl_jax.config import Config, observation_size
 from docrl_jax.export.manifest import BATCH, io_names
 
 ONNX_FILE = "policy.onnx"
@@ -60,7 +59,7 @@ def step_function(config: Config, params) -> Callable:
 
 def input_shapes(config: Config, batch: Any = BATCH) -> list[tuple]:
     units = config.agent.actor_hidden[0]
-    return [(batch, OBS_SIZE)] + ([(batch, units)] * 2 if config.agent.recurrent else [])
+    return [(batch, observation_size(config))] + ([(batch, units)] * 2 if config.agent.recurrent else [])
 
 
 @contextlib.contextmanager

@@ -42,8 +42,12 @@ def _beams(fov_deg: float, max_range: float) -> dict[str, Any]:
 
 def observation_spec(config: Config) -> dict[str, Any]:
     p = make_params(config.env.scenario, **env_kwargs(config))
+    vertical = [{"index": [OBS_SIZE, p.observation_size - 1], "name": "vertical_ranges",
+                 "value": "range / max range of the active sensor, in [0, 1], of two beams from the vehicle centre "
+                          "along body +z (up), then body -z (down); like the fans they see walls, floor and "
+                          "obstacles, not the water surface"}] if p.vertical_beams else []
     return {
-        "size": OBS_SIZE, "dtype": "float32", "shape": [BATCH, OBS_SIZE],
+        "size": p.observation_size, "dtype": "float32", "shape": [BATCH, p.observation_size],
         "frame": "world frame, z up, water surface at z = 0; (dx, dy, dz) = goal - vehicle centre (m); yaw = "
                  "heading of the body x axis about world z (rad)",
         "layout": [
@@ -66,6 +70,7 @@ def observation_spec(config: Config) -> dict[str, Any]:
              "value": "atan2(dz, hypot(dx, dy)) / (pi / 2), in [-1, 1]; positive: the goal is above"},
             {"index": NUM_BEAMS + ACTION_SIZE + 2, "name": "goal_distance", "scale_m": DIST_SCALE,
              "value": f"min(sqrt(dx^2 + dy^2 + dz^2) / {DIST_SCALE:.4f} m, 1) (the training tank's inner diagonal)"},
+            *vertical,
         ],
         "non_finite": "the simulator's observation replaces NaN by 0; give the policy finite values",
     }

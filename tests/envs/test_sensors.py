@@ -101,3 +101,54 @@ def test_sensor_noise_is_gaussian_and_bounded(env_fns):
     expected = clean / np.cos(np.deg2rad(270 / 38))
     assert abs(beam.mean() - expected) < 0.03 and 0.07 < beam.std() < 0.13
     assert np.all(np.asarray(batch.info["ranges"]) <= 10.0)
+
+
+
+def test_vertical_beams_match_mj_ray(casters):
+    """With vertical_beams the fan is unchanged and two beams along body +z / -z read mj_ray's distance."""
+    env, fan_only = casters[3]
+    params = envs.make_params(3, vertical_beams=True)
+    cast = jax.jit(lambda d, p, r, u: sensors.cast(params, env.mjx_model, d, env.body_id, p, r, u))
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    rng = np.random.default_rng(7)
+    lo, hi = env.params.bounds
+    hits = 0
+    for _ in range(30):
+        pos = np.array([rng.uniform(-4.6, 4.6), rng.uniform(-4.6, 4.6), rng.uniform(lo, hi)])
+        quat = rng.normal(size=4)
+        quat[1:3] *= 0.3
+        quat /= np.linalg.norm(quat)
+        d.qpos[:3], d.qpos[3:7] = pos, quat
+        mujoco.mj_forward(m, d)
+        rot = d.xmat[env.body_id].reshape(3, 3)
+        args = (mjx.put_data(m, d), jnp.asarray(pos, jnp.float32), jnp.asarray(rot, jnp.float32),
+                jnp.asarray(pos[2] < 0.0))
+        ours, fan = np.asarray(cast(*args)), np.asarray(fan_only(*args))
+        assert ours.shape == (sensors.NUM_BEAMS + 2,)
+        np.testing.assert_array_equal(ours[:sensors.NUM_BEAMS], fan)
+        max_range = 20.0 if pos[2] < 0 else 10.0
+        for k, sign in enumerate((1.0, -1.0)):
+            hit = mujoco.mj_ray(m, d, pos, sign * rot[:, 2], np.array(sensors.RAY_GEOMGROUP, np.uint8), 1,
+                                env.body_id, np.zeros(1, np.int32))
+            hits += 0 <= hit < max_range
+            assert ours[sensors.NUM_BEAMS + k] == pytest.approx(max_range if hit < 0 else min(hit, max_range),
+                                                                abs=1e-3)
+    assert hits >= 30, hits   # the floor below, and obstacles above in scenario 3, were hit
+
+
+def test_vertical_beams_extend_the_observation_not_the_collision_check(env_fns):
+    """In the empty tank (floor top -1.3 m, no ceiling): the observation gains the up and down ranges /
+    the active maximum, through the water surface as the fans; the fan and the rest keep their places;
+    the floor 0.5 m under the vehicle (within the 0.5 m collision distance of the fans) is no collision."""
+    env, reset_to, rollout = env_fns(1, wind=False, vertical_beams=True)
+    _, plain_reset_to, _ = env_fns(1, wind=False)
+    assert env.observation_size == 28
+    key, goal = jax.random.PRNGKey(0), jnp.array([0.0, 0.0, 2.0])
+    for position, expected in (((0.0, 0.0, 2.0), (10.0 / 10.0, 3.3 / 10.0)),
+                               ((0.0, 0.0, -0.8), (20.0 / 20.0, 0.5 / 20.0))):
+        s = reset_to(key, jnp.array(position), 0.4, goal)
+        plain = plain_reset_to(key, jnp.array(position), 0.4, goal)
+        np.testing.assert_allclose(np.asarray(s.obs[26:]), expected, atol=1e-4)
+        np.testing.assert_array_equal(np.asarray(s.obs[:26]), np.asarray(plain.obs))
+    _, (_, _, done, info) = rollout(s, jnp.tile(jnp.array([-1.0, 0.0, 0.0]), (3, 1)))
+    assert not np.any(np.asarray(info["collision"])) and not np.any(np.asarray(done))
