@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from docrl_jax import config as cfg
-from docrl_jax.config import ConfigError, config_from_dict, load_config, packaged_configs_dir, to_yaml
+from docrl_jax.config import ConfigError, config_from_dict, load_config, observation_size, packaged_configs_dir, to_yaml
 
 PACKAGED = ["td3_lstm", "sac_lstm", "ddpg_mlp", "sac_mlp"]
 PAPER = [f"{n}_paper" for n in PACKAGED]
@@ -59,6 +59,8 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     assert env["dr_action_latency"][1] >= 1 and env["dr_obs_latency"][1] >= 1 and env["dr_beam_dropout"][1] >= 0.1
     # a randomised mass only with the integral that takes it up (docs/ROBUSTNESS.md)
     assert env["dr_mass_scale"] == (0.8, 1.2) and env["vel_i_rate"] == 0.3
+    # the beams up and down, which the actor and critics see as two more observation floats
+    assert env["vertical_beams"] and observation_size(g) == 28 and observation_size(load_config("td3_lstm")) == 26
     for key, value in env.items():
         if key.startswith("dr_"):
             assert value[0] <= value[1], key
