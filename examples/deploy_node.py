@@ -64,39 +64,51 @@ def load_policy(export_dir: Path, artefact: str):
 
 
 def build_observation(manifest: dict, ranges_m, underwater: bool, previous_action, position, yaw: float, goal):
-    """The 26 observation floats (policy.json "observation"): ranges over the active sensor's maximum,
-    the previous action, then the goal's bearing / pi, elevation / (pi / 2) and distance / scale."""
-    layout = manifest["observation"]["layout"]
-    beams, goal_distance = layout[0], layout[-1]
+    """The observation floats (policy.json "observation"): ranges over the active sensor's maximum, the
+    previous action, then the goal's bearing / pi, elevation / (pi / 2) and distance / scale: 26. A
+    policy trained with vertical beams (a "vertical_ranges" entry, 28 floats) takes 22 ranges, the fan's
+    then up and down, and gets the last two at the end."""
+    layout = {entry["name"]: entry for entry in manifest["observation"]["layout"]}
+    beams, goal_distance = layout["ranges"], layout["goal_distance"]
+    num_ranges = beams["index"][1] + 1 + (2 if "vertical_ranges" in layout else 0)
+    if len(ranges_m) != num_ranges:
+        raise ValueError(f"{len(ranges_m)} ranges given; this policy takes {num_ranges} (policy.json observation)")
     max_range = beams["sonar" if underwater else "lidar"]["max_range_m"]
+    scaled = np.asarray(ranges_m, np.float32) / np.float32(max_range)
+    fan, vertical = scaled[:beams["index"][1] + 1], scaled[beams["index"][1] + 1:]
     dx, dy, dz = np.asarray(goal, np.float64) - np.asarray(position, np.float64)
     bearing = math.atan2(dy, dx) - yaw
     bearing = math.atan2(math.sin(bearing), math.cos(bearing))                 # wrapped to [-pi, pi]
     elevation = math.atan2(dz, math.hypot(dx, dy))
     distance = min(math.sqrt(dx * dx + dy * dy + dz * dz) / goal_distance["scale_m"], 1.0)
-    obs = np.concatenate([np.asarray(ranges_m, np.float32) / np.float32(max_range),
-                          np.asarray(previous_action, np.float32),
-                          np.array([bearing / math.pi, elevation / (math.pi / 2), distance], np.float32)])
+    obs = np.concatenate([fan, np.asarray(previous_action, np.float32),
+                          np.array([bearing / math.pi, elevation / (math.pi / 2), distance], np.float32), vertical])
     return np.nan_to_num(obs).astype(np.float32)
 
 
 class FakeVehicle:
-    """Sensors and actuators of a point vehicle in the empty tank (walls at x, y = +-4.9 m)."""
-    WALL = 4.9
+    """Sensors and actuators of a point vehicle in the empty tank (walls at x, y = +-4.9 m, floor top at
+    z = -1.3 m, no ceiling)."""
+    WALL, FLOOR = 4.9, -1.3
 
     def __init__(self, manifest: dict, position, yaw: float = 0.0):
         self.manifest, self.position, self.yaw = manifest, np.array(position, np.float64), yaw
         self.speeds = [entry["max_m_s" if "max_m_s" in entry else "max"] for entry in manifest["action"]["layout"]]
+        self.num_beams = manifest["observation"]["layout"][0]["index"][1] + 1
 
     def ranges(self):
-        """(20 ranges in metres, underwater): the active fan, level, cast against the four walls."""
+        """(ranges in metres, underwater): the active fan, level, cast against the four walls; then, for a
+        policy with vertical beams, up (nothing: the maximum) and down (the floor, through the water)."""
         underwater = self.position[2] < 0.0                   # the sonar below the surface, as in training
         fan = self.manifest["observation"]["layout"][0]["sonar" if underwater else "lidar"]
         angles = self.yaw + np.deg2rad(fan["bearings_deg"])
         d = np.stack([np.cos(angles), np.sin(angles)], -1)
         with np.errstate(divide="ignore"):
             t = np.where(d > 0, (self.WALL - self.position[:2]) / d, (-self.WALL - self.position[:2]) / d)
-        return np.minimum(np.min(np.where(np.abs(d) > 1e-9, t, np.inf), axis=-1), fan["max_range_m"]), underwater
+        ranges = np.minimum(np.min(np.where(np.abs(d) > 1e-9, t, np.inf), axis=-1), fan["max_range_m"])
+        if any(entry["name"] == "vertical_ranges" for entry in self.manifest["observation"]["layout"]):
+            ranges = np.append(ranges, [fan["max_range_m"], min(self.position[2] - self.FLOOR, fan["max_range_m"])])
+        return ranges, underwater
 
     def command(self, action, dt: float):
         """Follows the velocity references of `action` for dt seconds (policy.json "action")."""
@@ -135,7 +147,8 @@ class PolicyNode:
         self.vehicle.command(action, self.period)             # publish the velocity references
         self.previous_action, self.steps = action, self.steps + 1
         distance = float(np.linalg.norm(np.asarray(self.goal) - self.vehicle.position))
-        crashed = min(self.vehicle.ranges()[0]) < 0.5 or not -1.1 < self.vehicle.position[2] < 4.8
+        fan = self.vehicle.ranges()[0][:self.vehicle.num_beams]   # the collision check reads the fan only
+        crashed = min(fan) < 0.5 or not -1.1 < self.vehicle.position[2] < 4.8
         end = "arrived" if distance < 0.5 else "crashed" if crashed else (
             "timed out" if self.steps >= self.max_episode_steps else None)
         if end:

@@ -64,13 +64,13 @@ def prepare_out_dir(out_dir: str | Path, force: bool = False) -> Path:
     return out_dir
 
 
-def _check_observations(steps: int, seed: int = 0) -> np.ndarray:
-    """Observations in the ranges the env produces: ranges [0, 1], previous action and goal angles
-    [-1, 1], distance [0, 1]."""
+def _check_observations(steps: int, size: int, seed: int = 0) -> np.ndarray:
+    """Observations of `size` floats in the ranges the env produces: ranges [0, 1], previous action
+    and goal angles [-1, 1], distance [0, 1], the vertical ranges (floats 26-27, if any) [0, 1]."""
     rng = np.random.default_rng(seed)
-    obs = rng.uniform(-1.0, 1.0, (steps, 1, 26)).astype(np.float32)
+    obs = rng.uniform(-1.0, 1.0, (steps, 1, size)).astype(np.float32)
     obs[..., :20] = np.abs(obs[..., :20])
-    obs[..., 25] = np.abs(obs[..., 25])
+    obs[..., 25:] = np.abs(obs[..., 25:])
     return obs
 
 
@@ -82,7 +82,7 @@ def check_export(out_dir: Path, formats: Sequence[str], step, manifest: dict[str
 
     from docrl_jax.export.runners import open_artefact
     reference = jax.jit(step)
-    obs = _check_observations(steps)
+    obs = _check_observations(steps, manifest["observation"]["size"])
     result: dict[str, Any] = {"steps": steps, "batch_sizes": [1, 3], "tolerance": CHECK_TOLERANCE,
                               "max_abs_action_diff": {}}
     for fmt in formats:

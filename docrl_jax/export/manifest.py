@@ -2,8 +2,9 @@
 the units a vehicle's software has to produce and consume, read from the run's own environment
 parameters (its beams, ranges, speeds and control period), and where the policy came from.
 
-Everything a deployment needs to build the 26 observation floats is here: which float is which beam,
-the normalisations, the goal vector's definitions; then the action's meaning, the carry and its reset.
+Everything a deployment needs to build the 26 observation floats (28 with vertical beams) is here:
+which float is which beam, the normalisations, the goal vector's definitions; then the action's
+meaning, the carry and its reset.
 """
 
 from __future__ import annotations

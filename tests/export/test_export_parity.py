@@ -191,3 +191,25 @@ def test_the_python_blocks_of_deploy_md_run(exports, tmp_path, monkeypatch, isol
     assert actions[0].shape == (1, 3)
     for action in actions[1:]:
         np.testing.assert_allclose(action, actions[0], atol=1e-5, rtol=0)
+
+
+def test_a_vertical_beam_policy_exports_and_the_example_builds_its_observation(env_fns, tmp_path):
+    """A policy trained with env.vertical_beams takes 28 floats: its export is checked on 28-float
+    observations, policy.json names floats 26-27, and examples/deploy_node.py, given the fan's ranges then
+    up and down, builds the env's observation (the paper's 20 ranges alone are refused)."""
+    config = load_config("td3_lstm_generalist", backend="cpu")
+    params = make_agent(config).init(jax.random.PRNGKey(5)).actor
+    manifest = export_actor(config, params, tmp_path / "vertical", source={"fresh": "td3_lstm_generalist"},
+                            formats=["numpy"])
+    assert manifest["observation"]["size"] == 28 and manifest["observation"]["layout"][-1]["index"] == [26, 27]
+    assert manifest["check"]["max_abs_action_diff"]["numpy"] < TOLERANCE
+    _, reset_to, _ = env_fns(1, wind=False, vertical_beams=True)
+    build = _example_module().build_observation
+    for position, yaw, goal in (((1.0, -2.0, 2.0), 0.3, (0.0, 3.0, -1.0)), ((-2.0, 1.5, -0.6), -2.0, (2.0, 2.0, 2.5))):
+        s = reset_to(jax.random.PRNGKey(0), jnp.array(position), yaw, jnp.array(goal))
+        # Empty tank: nothing above the vehicle (the maximum range), the floor top 1.3 m under the surface.
+        ranges = np.append(np.asarray(s.info["ranges"]), [20.0 if position[2] < 0 else 10.0, position[2] + 1.3])
+        obs = build(manifest, ranges, position[2] < 0, np.zeros(3), position, yaw, goal)
+        np.testing.assert_allclose(obs, np.asarray(s.obs), atol=2e-6, rtol=0)
+    with pytest.raises(ValueError, match="20 ranges given; this policy takes 22"):
+        build(manifest, ranges[:20], position[2] < 0, np.zeros(3), position, yaw, goal)
