@@ -70,12 +70,13 @@ def build_observation(manifest: dict, ranges_m, underwater: bool, previous_actio
     then up and down, and gets the last two at the end."""
     layout = {entry["name"]: entry for entry in manifest["observation"]["layout"]}
     beams, goal_distance = layout["ranges"], layout["goal_distance"]
-    num_ranges = beams["index"][1] + 1 + (2 if "vertical_ranges" in layout else 0)
+    num_beams = beams["index"][1] + 1
+    num_ranges = num_beams + (2 if "vertical_ranges" in layout else 0)
     if len(ranges_m) != num_ranges:
         raise ValueError(f"{len(ranges_m)} ranges given; this policy takes {num_ranges} (policy.json observation)")
     max_range = beams["sonar" if underwater else "lidar"]["max_range_m"]
     scaled = np.asarray(ranges_m, np.float32) / np.float32(max_range)
-    fan, vertical = scaled[:beams["index"][1] + 1], scaled[beams["index"][1] + 1:]
+    fan, vertical = scaled[:num_beams], scaled[num_beams:]
     dx, dy, dz = np.asarray(goal, np.float64) - np.asarray(position, np.float64)
     bearing = math.atan2(dy, dx) - yaw
     bearing = math.atan2(math.sin(bearing), math.cos(bearing))                 # wrapped to [-pi, pi]
@@ -92,21 +93,23 @@ class FakeVehicle:
     WALL, FLOOR = 4.9, -1.3
 
     def __init__(self, manifest: dict, position, yaw: float = 0.0):
-        self.manifest, self.position, self.yaw = manifest, np.array(position, np.float64), yaw
+        self.position, self.yaw = np.array(position, np.float64), yaw
         self.speeds = [entry["max_m_s" if "max_m_s" in entry else "max"] for entry in manifest["action"]["layout"]]
-        self.num_beams = manifest["observation"]["layout"][0]["index"][1] + 1
+        layout = {entry["name"]: entry for entry in manifest["observation"]["layout"]}
+        self.fans, self.vertical = layout["ranges"], "vertical_ranges" in layout
+        self.num_beams = self.fans["index"][1] + 1
 
     def ranges(self):
         """(ranges in metres, underwater): the active fan, level, cast against the four walls; then, for a
         policy with vertical beams, up (nothing: the maximum) and down (the floor, through the water)."""
         underwater = self.position[2] < 0.0                   # the sonar below the surface, as in training
-        fan = self.manifest["observation"]["layout"][0]["sonar" if underwater else "lidar"]
+        fan = self.fans["sonar" if underwater else "lidar"]
         angles = self.yaw + np.deg2rad(fan["bearings_deg"])
         d = np.stack([np.cos(angles), np.sin(angles)], -1)
         with np.errstate(divide="ignore"):
             t = np.where(d > 0, (self.WALL - self.position[:2]) / d, (-self.WALL - self.position[:2]) / d)
         ranges = np.minimum(np.min(np.where(np.abs(d) > 1e-9, t, np.inf), axis=-1), fan["max_range_m"])
-        if any(entry["name"] == "vertical_ranges" for entry in self.manifest["observation"]["layout"]):
+        if self.vertical:
             ranges = np.append(ranges, [fan["max_range_m"], min(self.position[2] - self.FLOOR, fan["max_range_m"])])
         return ranges, underwater
 

@@ -55,7 +55,7 @@ except ImportError as err:  # the core package works without gymnasium; this mod
     raise ImportError("docrl_jax.envs.gym_env needs gymnasium: pip install -e '.[gym]' (gymnasium==1.4.0)") from err
 
 import docrl_jax.envs as envs
-from docrl_jax.envs.huauv import ACTION_SIZE, OBS_LAYOUT, OBS_SIZE
+from docrl_jax.envs.huauv import ACTION_SIZE, OBS_SIZE, observation_bounds
 from docrl_jax.envs.wrappers import reset_key
 
 ENV_ID = "docrl_jax/HUAUV-v0"
@@ -64,13 +64,10 @@ RENDER_FPS = 5   # one frame per control step (0.2 s) plays in real time
 
 
 def observation_space(size: int = OBS_SIZE) -> spaces.Box:
-    """Bounds of the observations (huauv.py; `size` is the env's `observation_size`, 28 with
-    vertical_beams): ranges and distance in [0, 1], the rest in [-1, 1]."""
-    low = -np.ones(size, np.float32)
-    low[OBS_LAYOUT["ranges"]] = 0.0
-    low[OBS_LAYOUT["distance"]] = 0.0
-    low[OBS_SIZE:] = 0.0
-    return spaces.Box(low=low, high=np.ones(size, np.float32), dtype=np.float32)
+    """Bounds of the observations (`huauv.observation_bounds`; `size` is the env's `observation_size`,
+    28 with vertical_beams)."""
+    low, high = observation_bounds(size)
+    return spaces.Box(low=low, high=high, dtype=np.float32)
 
 
 def action_space() -> spaces.Box:

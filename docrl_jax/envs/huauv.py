@@ -35,6 +35,15 @@ OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 2
               "distance": 25, "vertical": slice(26, 28)}   # "vertical": with vertical_beams only
 
 
+def observation_bounds(size: int = OBS_SIZE) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of each of `size` observation floats (an env's `observation_size`): the ranges, the
+    distance and the vertical ranges in [0, 1], the rest in [-1, 1]."""
+    low = -np.ones(size, np.float32)
+    for name in ("ranges", "distance", "vertical"):
+        low[OBS_LAYOUT[name]] = 0.0
+    return low, np.ones(size, np.float32)
+
+
 def _one_env(method: str, name: str, x: jax.Array, shape: tuple, size_name: str = "") -> jax.Array:
     """The env's functions take one env's arrays; a wrong shape would otherwise broadcast or slice
     silently (a (2,) action gave a (25,) observation). Checked at trace time, so it costs nothing

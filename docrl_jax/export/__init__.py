@@ -65,13 +65,12 @@ def prepare_out_dir(out_dir: str | Path, force: bool = False) -> Path:
 
 
 def _check_observations(steps: int, size: int, seed: int = 0) -> np.ndarray:
-    """Observations of `size` floats in the ranges the env produces: ranges [0, 1], previous action
-    and goal angles [-1, 1], distance [0, 1], the vertical ranges (floats 26-27, if any) [0, 1]."""
+    """Observations of `size` floats in the ranges the env produces (`huauv.observation_bounds`)."""
+    from docrl_jax.envs.huauv import observation_bounds
     rng = np.random.default_rng(seed)
     obs = rng.uniform(-1.0, 1.0, (steps, 1, size)).astype(np.float32)
-    obs[..., :20] = np.abs(obs[..., :20])
-    obs[..., 25:] = np.abs(obs[..., 25:])
-    return obs
+    low, _ = observation_bounds(size)
+    return np.where(low == 0.0, np.abs(obs), obs)   # the [0, 1] floats
 
 
 def check_export(out_dir: Path, formats: Sequence[str], step, manifest: dict[str, Any],

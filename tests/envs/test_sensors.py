@@ -103,7 +103,6 @@ def test_sensor_noise_is_gaussian_and_bounded(env_fns):
     assert np.all(np.asarray(batch.info["ranges"]) <= 10.0)
 
 
-
 def test_vertical_beams_match_mj_ray(casters):
     """With vertical_beams the fan is unchanged and two beams along body +z / -z read mj_ray's distance."""
     env, fan_only = casters[3]
