@@ -337,8 +337,9 @@ class HUAUVEnv:
     @staticmethod
     def _info(ranges, position, velocity, rot, goal, underwater, arrived, terminated, truncated, collision,
               out_of_bounds, step, goals_reached, nonfinite_action):
-        return {   # "ranges": the fan's; the vertical beams are in the observation only
-            "ranges": ranges[:sensors.NUM_BEAMS], "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot),
+        return {   # "ranges": the fan's; "vertical_ranges": up and down with vertical_beams, else empty (0,)
+            "ranges": ranges[:sensors.NUM_BEAMS], "vertical_ranges": ranges[sensors.NUM_BEAMS:],
+            "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot),
             "goal": goal, "distance": jnp.linalg.norm(goal - position), "underwater": underwater,
             "arrived": arrived, "terminated": terminated, "truncated": truncated, "collision": collision,
             "out_of_bounds": out_of_bounds, "step": step, "goals_reached": goals_reached,

@@ -6,9 +6,10 @@ turns with it (pulled in when a wall or an obstacle is between it and the vehicl
 the whole tank from above one corner, with the walls nearest to it see-through. On top of the scene:
 the water as a translucent blue-green volume with its surface line drawn on the walls, a blue-green
 tint and fog over a view whose camera is under water, the goal (a translucent sphere of the arrival
-radius), the active range fan (LIDAR in air, sonar under water; `sensors.beam_directions`) with its
-hits, the path so far, rotor discs that show the vehicle's heading (red at the front), and a text
-overlay (step, medium, distance to the goal, outcome; Pillow's ImageDraw).
+radius), the active range fan (LIDAR in air, sonar under water; `sensors.beam_directions`) and the
+vertical beams (`vertical_beams`) with their hits, the path so far, rotor discs that show the
+vehicle's heading (red at the front), and a text overlay (step, medium, distance to the goal,
+outcome; Pillow's ImageDraw).
 
 Render-only: the decorations are extra geoms put into the renderer's scene after `update_scene`
 (`mjv_initGeom`, `mjv_connector`), and the lights, fog and buffer size are set on a copy of the
@@ -74,6 +75,7 @@ class Track:
     qpos: np.ndarray                      # (T, 7) position and quaternion (w, x, y, z)
     goal: np.ndarray                      # (T, 3)
     ranges: np.ndarray | None = None      # (T, 20) the ranges read (noise included); None: no fan
+    vertical_ranges: np.ndarray | None = None  # (T, 2) up and down (env.vertical_beams); None or (T, 0): none
     underwater: np.ndarray | None = None  # (T,) bool: the sensor used (sonar when true)
     step: np.ndarray | None = None        # (T,) control steps since the start
     distance: np.ndarray | None = None    # (T,) metres to the goal
@@ -173,13 +175,14 @@ class Renderer:
             cam_yaw = self._smooth_yaw(track.qpos[:t + 1])[-1]
         return self.frame(track.qpos[t], track.goal[t], None if track.ranges is None else track.ranges[t],
                           None if track.underwater is None else bool(track.underwater[t]),
-                          lines=self._lines(track, t), trail=track.qpos[:t + 1, :3], cam_yaw=cam_yaw)
+                          lines=self._lines(track, t), trail=track.qpos[:t + 1, :3], cam_yaw=cam_yaw,
+                          vertical_ranges=None if track.vertical_ranges is None else track.vertical_ranges[t])
 
     def frame(self, qpos, goal, ranges=None, underwater: bool | None = None, lines: Sequence[str] = (),
-              trail=None, cam_yaw: float | None = None, vehicle: bool = True) -> np.ndarray:
+              trail=None, cam_yaw: float | None = None, vehicle: bool = True, vertical_ranges=None) -> np.ndarray:
         """One frame (H, W, 3) uint8 of the vehicle at `qpos` heading for `goal`. `ranges`: the active
-        fan's ranges (drawn when the renderer's `fan` is on); `underwater`: which fan (default: by the
-        vehicle's depth); `trail`: past positions (k, 3); `cam_yaw`: the follow camera's heading in
+        fan's ranges and `vertical_ranges` the up and down beams' (both drawn when the renderer's `fan` is
+        on); `underwater`: which fan (default: by the vehicle's depth); `trail`: past positions (k, 3); `cam_yaw`: the follow camera's heading in
         radians (default the vehicle's); `vehicle=False` leaves the vehicle out (tests find its pixels)."""
         qpos = np.asarray(qpos, np.float64)
         self.data.qpos[:] = qpos
@@ -200,8 +203,8 @@ class Renderer:
             cam_pos = self._camera_position(cam)
             wet = cam_pos[2] < 0.0
             scene.flags[mujoco.mjtRndFlag.mjRND_FOG] = wet
-            self._decorate(scene, view, qpos, rot, np.asarray(goal, np.float64), ranges, underwater, trail, vehicle,
-                           cam_pos)
+            self._decorate(scene, view, qpos, rot, np.asarray(goal, np.float64), ranges, vertical_ranges, underwater,
+                           trail, vehicle, cam_pos)
             img = self._renderer.render().astype(np.float32)
             if wet:
                 img = (1.0 - TINT) * img + TINT * TINT_RGB
@@ -258,7 +261,8 @@ class Renderer:
             mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_LINE, width, np.asarray(a, np.float64),
                                  np.asarray(b, np.float64))
 
-    def _decorate(self, scene, view, qpos, rot, goal, ranges, underwater, trail, vehicle, cam_pos) -> None:
+    def _decorate(self, scene, view, qpos, rot, goal, ranges, vertical_ranges, underwater, trail, vehicle,
+                  cam_pos) -> None:
         if view == "overview":   # the walls between the camera and the tank are see-through
             for i in range(scene.ngeom):
                 g = scene.geoms[i]
@@ -292,6 +296,9 @@ class Renderer:
             fov = self.params.sonar_fov_deg if underwater else self.params.lidar_fov_deg
             angles = sensors.beam_angles(fov)   # the env's beams (sensors.beam_directions), in NumPy
             dirs = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], -1) @ rot.T
+            if vertical_ranges is not None and len(vertical_ranges):
+                ranges = np.concatenate([ranges, np.asarray(vertical_ranges, np.float64)])
+                dirs = np.concatenate([dirs, sensors.VERTICAL_DIRECTIONS @ rot.T])
             limit = self.params.sonar_max_range if underwater else self.params.lidar_max_range
             rgba = SONAR_RGBA if underwater else LIDAR_RGBA
             for d, rng in zip(dirs, ranges):
@@ -350,6 +357,7 @@ def track_from_infos(qpos: Sequence, infos: Sequence[dict]) -> Track:
     adapter keeps these)."""
     info = {k: np.stack([np.asarray(i[k]) for i in infos]) for k in infos[0]}
     return Track(qpos=np.asarray(qpos, np.float64).reshape(-1, 7), goal=info["goal"], ranges=info["ranges"],
+                 vertical_ranges=info.get("vertical_ranges"),
                  underwater=info["underwater"], step=info["step"], distance=info["distance"],
                  status=[_status_of(info, t) for t in range(len(infos))])
 
@@ -370,6 +378,7 @@ def track_from_states(states: Any) -> Track:
         raise ValueError(f"render: states of qpos shape {qpos.shape}: expected one env's states over time "
                          f"(T, 7); for a batch of envs, render one env at a time")
     return Track(qpos=qpos, goal=np.asarray(sim.goal), ranges=np.asarray(info["ranges"]),
+                 vertical_ranges=np.asarray(info["vertical_ranges"]),
                  underwater=np.asarray(info["underwater"]), step=np.asarray(info["step"]),
                  distance=np.asarray(info["distance"]), status=[_status_of(info, t) for t in range(len(qpos))])
 

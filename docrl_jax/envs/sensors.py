@@ -22,6 +22,7 @@ from docrl_jax.envs.params import EnvParams
 
 NUM_BEAMS = 20  # per fan; with vertical_beams `cast` returns two more ranges after them
 RAY_GEOMGROUP = (0, 1, 0, 0, 0, 0)  # only group 1 (assets/common.xml)
+VERTICAL_DIRECTIONS = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]], np.float32)  # vertical_beams: body +z, -z
 
 
 def beam_angles(fov_deg: float) -> np.ndarray:
@@ -34,7 +35,7 @@ def beam_directions(p: EnvParams, rot: jnp.ndarray, underwater: jnp.ndarray) -> 
     angles = jnp.where(underwater, beam_angles(p.sonar_fov_deg), beam_angles(p.lidar_fov_deg))
     local = jnp.stack([jnp.cos(angles), jnp.sin(angles), jnp.zeros_like(angles)], -1)
     if p.vertical_beams:
-        local = jnp.concatenate([local, jnp.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])])
+        local = jnp.concatenate([local, VERTICAL_DIRECTIONS])
     return local @ rot.T
 
 

@@ -67,7 +67,7 @@ _ROLLOUTS: dict = {}
 
 # What a rendering rollout records besides (`render=True`), per step and for the start: the pose and
 # what the env knew (docrl_jax.envs.rendering draws them).
-RENDER_RECORDS = ("qpos", "goal", "ranges", "underwater", "distance")
+RENDER_RECORDS = ("qpos", "goal", "ranges", "vertical_ranges", "underwater", "distance")
 
 
 def _cache_key(env, policy, max_steps: int, render: bool = False, from_states: bool = False) -> tuple:
@@ -147,6 +147,7 @@ def make_rollout(env, policy, max_steps: int, render: bool = False, from_states:
 
 def _render_records(state) -> dict:
     return {"qpos": state.sim.data.qpos, "goal": state.sim.goal, "ranges": state.info["ranges"],
+            "vertical_ranges": state.info["vertical_ranges"],
             "underwater": state.info["underwater"], "distance": state.info["distance"]}
 
 

@@ -131,6 +131,7 @@ def tracks(trials: dict[str, np.ndarray], dt: float, title: str = "") -> list:
         end = int(trials["steps"][i]) + 1
         status = [""] * (end - 1) + [outcome_line(trials, i, dt)]
         out.append(Track(qpos=trials["qpos"][i, :end], goal=trials["goal"][i, :end], ranges=trials["ranges"][i, :end],
+                         vertical_ranges=trials["vertical_ranges"][i, :end],
                          underwater=trials["underwater"][i, :end], step=np.arange(end),
                          distance=trials["distance"][i, :end], status=status,
                          title=title.format(trial=i + 1, trials=n)))

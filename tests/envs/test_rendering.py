@@ -137,3 +137,19 @@ def test_no_gl_backend_is_one_line_and_imageio_stays_optional(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("error: "), res.stderr
     assert "MUJOCO_GL=glfw" in lines[0] and "egl, osmesa, glfw" in lines[0]
     assert not (tmp_path / "x.gif").exists()
+
+
+def test_vertical_beams_drawn_above_and_below_the_vehicle(states):
+    """`vertical_ranges` (env.vertical_beams) add two beams along body +z and -z: in the follow view a
+    line through the vehicle, above and below it; the plain env's states carry none."""
+    env, s = states
+    track = track_from_states([s["west"]])
+    assert track.vertical_ranges.shape == (1, 0)
+    args = (track.qpos[0], track.goal[0], track.ranges[0], False)
+    with Renderer(env.mj_model, env.params, 160, 120, camera="follow", overlay=False) as r:
+        plain = r.frame(*args).astype(int)
+        beams = np.abs(r.frame(*args, vertical_ranges=np.array([1.5, 1.5])).astype(int) - plain).max(-1) > 25
+        vehicle = np.argwhere(_vehicle_mask(r, s["west"])).mean(0)
+    rows, cols = np.nonzero(beams)
+    assert rows.size > 10 and abs(cols.mean() - vehicle[1]) < 8, (rows.size, cols.mean(), vehicle)
+    assert rows.min() < vehicle[0] - 10 and rows.max() > vehicle[0] + 10, (rows.min(), rows.max(), vehicle)

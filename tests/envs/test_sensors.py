@@ -138,7 +138,8 @@ def test_vertical_beams_match_mj_ray(casters):
 def test_vertical_beams_extend_the_observation_not_the_collision_check(env_fns):
     """In the empty tank (floor top -1.3 m, no ceiling): the observation gains the up and down ranges /
     the active maximum, through the water surface as the fans; the fan and the rest keep their places;
-    the floor 0.5 m under the vehicle (within the 0.5 m collision distance of the fans) is no collision."""
+    the floor 0.5 m under the vehicle (within the 0.5 m collision distance of the fans) is no collision.
+    info["vertical_ranges"] holds the two in metres (empty without the beams), for the renderer."""
     env, reset_to, rollout = env_fns(1, wind=False, vertical_beams=True)
     _, plain_reset_to, _ = env_fns(1, wind=False)
     assert env.observation_size == 28
@@ -149,5 +150,8 @@ def test_vertical_beams_extend_the_observation_not_the_collision_check(env_fns):
         plain = plain_reset_to(key, jnp.array(position), 0.4, goal)
         np.testing.assert_allclose(np.asarray(s.obs[26:]), expected, atol=1e-4)
         np.testing.assert_array_equal(np.asarray(s.obs[:26]), np.asarray(plain.obs))
+        limit = 20.0 if position[2] < 0 else 10.0
+        np.testing.assert_allclose(np.asarray(s.info["vertical_ranges"]), np.array(expected) * limit, atol=1e-3)
+        assert s.info["ranges"].shape == (20,) and plain.info["vertical_ranges"].shape == (0,)
     _, (_, _, done, info) = rollout(s, jnp.tile(jnp.array([-1.0, 0.0, 0.0]), (3, 1)))
     assert not np.any(np.asarray(info["collision"])) and not np.any(np.asarray(done))
