@@ -1,4 +1,4 @@
-"""The table of benchmarks/ab_launches.sh (or any DIR/{old,new}/time_to_success_{side}_s*.json with
+"""The table of benchmarks/ab_launches.sh (or any DIR/{old,new,...}/time_to_success_{side}_s*.json with
 the runs in DIR/runs_{side}/): per launch, start-up (startup.json), the median env steps/s of the
 learning chunks (from the trainer's log), seconds between evaluation rows after the first (the
 steady-state pace), time to 90 % both ways, and, for launches run to their end (--to-end), launch to
@@ -43,7 +43,12 @@ def launch(run_dir: str, ttt: dict, log: str) -> dict:
 
 
 def main(dirs: list[str]) -> None:
-    by_side: dict[str, list[dict]] = {"old": [], "new": []}
+    """Every side found (DIR/SIDE/time_to_success_SIDE_s*.json: old and new, or the SIDES of
+    ab_launches.sh), old first."""
+    sides = sorted({os.path.basename(os.path.dirname(p)) for d in dirs
+                    for p in glob.glob(os.path.join(d, "*", "time_to_success_*_s*.json"))},
+                   key=lambda s: (s != "old", s != "new", s))
+    by_side: dict[str, list[dict]] = {s: [] for s in sides}
     for d in dirs:
         for side in by_side:
             for path in sorted(glob.glob(os.path.join(d, side, f"time_to_success_{side}_s*.json"))):
