@@ -4,7 +4,7 @@ After every periodic evaluation, each seed's evaluated policy (the Polyak averag
 policy) is compared with that seed's best so far by a score, compared lexicographically:
   1. with `train.eval_paper_pairs`: the lower of the air-to-water and water-to-air success (the
      target is both directions); without: the random-goal success;
-  2. then the random-goal success (-1 for an evaluation of the pairs only, alongside training).
+  2. then the random-goal success.
 A policy at least as good as the best replaces it, so ties go to the later, longer-trained policy.
 The best is kept on the host (a few kilobytes per seed) and written into every checkpoint as its
 `best` item, beside `policy` (the final/current one), with this bookkeeping in the checkpoint's meta;
@@ -36,10 +36,7 @@ class BestPolicy:
 
 def score(ev: dict) -> np.ndarray:
     """(num_seeds, 2) scores of one evaluation (`ev`: per-seed arrays, as the evaluate program returns)."""
-    # An evaluation of the pairs only (alongside training) has no random-goal success: -1 ranks it
-    # below an evaluation with the same pair score that has one (and stays plain JSON in the meta).
-    rate = np.asarray(ev["success_rate"], np.float64) if "success_rate" in ev else \
-        np.full(len(ev[PAIR_KEYS[0]]), -1.0)
+    rate = np.asarray(ev["success_rate"], np.float64)
     first = np.minimum(*(np.asarray(ev[k], np.float64) for k in PAIR_KEYS)) if PAIR_KEYS[0] in ev else rate
     return np.stack([first, rate], axis=-1)
 

@@ -22,12 +22,6 @@ The same episodes run in one of two ways:
   episode until it ends (docrl_jax.envs.wrappers), and a lane stops counting at its first arrival
   (the training env goes on to a new goal where the evaluation's own env stops), so both ways give the
   same results from the same key.
-
-Alongside, the lanes are groups of `eval_episodes`: the random goals (group 0, `TRIPS`), then one per
-paper pair direction. Each group keeps its own copy of the policy and begins when the host asks for
-it (`Lanes.begin`, one flag per group), so the pairs, whose episodes end within ~150 steps, can begin
-a new evaluation while the random goals of an earlier one, which run up to the step limit, go on
-(docrl_jax.train.loop.Evaluations decides which groups begin).
 """
 
 from __future__ import annotations
@@ -44,16 +38,6 @@ from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, trial_starts
 
 
 _EVAL_SALT = 0x5EA1
-TRIPS = 0                                         # the lane group of the random-goal episodes
-TRIP_COLUMNS = ("success_rate", "episode_return")  # its results; every other result is a paper pair's
-
-
-def column_group(name: str) -> int:
-    """The lane group (alongside training) whose episodes give the evaluation result `name`: the random
-    goals (TRIPS) or the paper pair direction the name ends with (groups 1, 2 in DIRECTIONS order)."""
-    if name in TRIP_COLUMNS:
-        return TRIPS
-    return 1 + next(i for i, d in enumerate(DIRECTIONS) if name.endswith(d))
 
 
 def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
@@ -101,12 +85,11 @@ class Tally(NamedTuple):
 
 @struct.dataclass
 class Lanes:
-    """The evaluation alongside training, per group of lanes (G groups of n episodes): the policy each
-    evaluates, carry and tally, and the host's request."""
-    params: Any             # (G, ...) each group's policy: the actor's average when its evaluation began
-    carry: Any              # (G, n, ...) its carry over the group's lanes
-    tally: Tally            # (G * n,) the lanes' outcomes, group after group
-    begin: jax.Array        # (G,) bool, set by the host: the groups the next chunk begins from `fresh`
+    """The evaluation alongside training: its policy, carry and tally, and the host's request."""
+    params: Any             # the policy under evaluation: the actor's average when the evaluation began
+    carry: Any              # its carry over the lanes
+    tally: Tally
+    begin: jax.Array        # () bool, set by the host: the next chunk begins an evaluation from `fresh`
     fresh: Any              # EnvState of the lanes: the first states of the next evaluation's episodes
                             # (`Alongside.starts` of its key, a program of its own: the chunk only copies them)
 
@@ -114,15 +97,12 @@ class Lanes:
 class Alongside(NamedTuple):
     """Pure functions of the evaluation lanes: the last `size` envs of the training batch."""
     size: int
-    groups: int             # G: the random goals (TRIPS), then the paper pairs' directions
     starts: Callable        # key -> EnvState of `size` lanes: an evaluation's episodes, as `evaluate` starts them
     init: Callable          # (actor params, EnvState of `size` lanes) -> Lanes (idle)
     begin: Callable         # (Lanes, env state (n + size), actor params) -> (Lanes, env state): fresh episodes
-                            # in the groups whose `begin` flag is set
     act: Callable           # (Lanes, obs (size, 26)) -> (Lanes, actions (size, 3))
     count: Callable         # (Lanes, env state of the lanes after the step) -> Lanes
-    results: Callable       # Lanes -> the evaluation's metrics as `evaluate` returns them, each from its
-                            # group's latest episodes, and "running" (G,): the episodes still running per group
+    results: Callable       # Lanes -> the evaluation's metrics as `evaluate` returns them, and "running"
 
 
 class Evaluation(NamedTuple):
@@ -194,44 +174,31 @@ def make_evaluation(config: Config, act, init_carry, memory: bool, train_env) ->
     # ------------------------------------------------------------------ alongside training
     alongside = None
     if config.train.eval_alongside:
-        groups = len(names)
-        size = n * groups
+        size = n * len(names)
         lanes = slice(-size, None)
-        per_group = lambda x: x.reshape((groups, n) + x.shape[1:])   # noqa: E731  (G * n, ...) -> (G, n, ...)
-        per_lane = lambda x: x.reshape((size,) + x.shape[2:])         # noqa: E731
-        stack = lambda tree: jax.tree.map(lambda x: jnp.stack([x] * groups), tree)  # noqa: E731
-
-        def where(flags, new, old):
-            """`new` where the leading-axis flag is set, else `old` (leaf by leaf)."""
-            return jax.tree.map(lambda a, b: jnp.where(flags.reshape(flags.shape + (1,) * (a.ndim - 1)), a, b),
-                                new, old)
 
         def lane_starts(key):
             return jax.tree.map(lambda *xs: jnp.concatenate(xs), *starts(key, train_env, train_env))
 
         def init(actor_params, fresh) -> Lanes:
-            return Lanes(params=stack(actor_params), carry=stack(init_carry((n,))),
-                         tally=Tally.start(size, alive=False), begin=jnp.zeros(groups, bool), fresh=fresh)
+            return Lanes(params=actor_params, carry=init_carry((size,)), tally=Tally.start(size, alive=False),
+                         begin=jnp.zeros((), bool), fresh=fresh)
 
         def begin(lanes_state: Lanes, env_state, actor_params):
-            flags, lane_flags = lanes_state.begin, jnp.repeat(lanes_state.begin, n)
-            fresh = where(lane_flags, lanes_state.fresh, jax.tree.map(lambda x: x[lanes], env_state))
-            env_state = jax.tree.map(lambda full, new: full.at[lanes].set(new), env_state, fresh)
-            return lanes_state.replace(params=where(flags, stack(actor_params), lanes_state.params),
-                                       carry=where(flags, stack(init_carry((n,))), lanes_state.carry),
-                                       tally=where(lane_flags, Tally.start(size), lanes_state.tally),
-                                       begin=jnp.zeros(groups, bool)), env_state
+            env_state = jax.tree.map(lambda full, new: full.at[lanes].set(new), env_state, lanes_state.fresh)
+            return lanes_state.replace(params=actor_params, carry=init_carry((size,)), tally=Tally.start(size),
+                                       begin=jnp.zeros((), bool)), env_state
 
         def act_lanes(lanes_state: Lanes, obs):
-            carry, action = jax.vmap(policy)(lanes_state.params, lanes_state.carry, per_group(obs))
-            return lanes_state.replace(carry=carry), per_lane(action)
+            carry, action = policy(lanes_state.params, lanes_state.carry, obs)
+            return lanes_state.replace(carry=carry), action
 
         def count(lanes_state: Lanes, stepped) -> Lanes:
             return lanes_state.replace(tally=lanes_state.tally.count(stepped))
 
         def results(lanes_state: Lanes) -> dict:
-            return {**summary(lanes_state.tally), "running": jnp.sum(per_group(lanes_state.tally.alive), axis=1)}
+            return {**summary(lanes_state.tally), "running": jnp.sum(lanes_state.tally.alive)}
 
-        alongside = Alongside(size=size, groups=groups, starts=lane_starts, init=init, begin=begin, act=act_lanes,
-                              count=count, results=results)
+        alongside = Alongside(size=size, starts=lane_starts, init=init, begin=begin, act=act_lanes, count=count,
+                              results=results)
     return Evaluation(evaluate=evaluate, alongside=alongside)

@@ -7,9 +7,8 @@ written, whether there are checkpoints) comes in as `Hooks`; when to evaluate an
 `Cadence` each, by env steps or by wall-clock minutes, whichever comes first, so a slow device
 still writes learning curves and checkpoints. How an evaluation runs is `Evaluations`': paused
 (the evaluation program between chunks) or alongside training (train.eval_alongside: it begins with
-the next chunk and its rows are written when its last episode has ended; the paper pairs may begin
-a new one while the random goals of an earlier one still run); the final one, and those running
-alongside at a checkpoint or a stop, are paused ones.
+the next chunk and its rows are written when its last episode has ended); the final one, and one
+running alongside at a checkpoint or a stop, are paused ones.
 
 Ctrl-C (or SIGTERM, as a cluster's scheduler sends before it kills a job) is answered at once:
 the loop finishes the running chunk (XLA cannot stop it half-way), saves a checkpoint and stops.
@@ -31,7 +30,7 @@ import jax
 import numpy as np
 
 from docrl_jax.train import metrics
-from docrl_jax.train.evaluation import TRIPS, column_group, eval_keys
+from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.metrics import duration
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -186,32 +185,17 @@ class Hooks:
     save: Callable[[Any, int, int], None] | None = None  # (runner state, env steps, chunks done); None: never
 
 
-class _Running(NamedTuple):
-    """An evaluation running alongside training."""
-    captured: tuple          # (env steps, statistics, updates) when it began
-    groups: frozenset        # the lane groups it began
-    waiting: set             # those whose episodes are still running
-    results: dict            # the results of its groups that have ended
-
-
 class Evaluations:
     """Runs the evaluations of a run or a sweep (docrl_jax.train.evaluation) for the loop.
 
     `now`: the evaluation program on the policy as it is, training waits (with `trained_actor`, the
     trained actor too, on the same episodes). When the run's `programs` (docrl_jax.train.programs)
     have evaluation lanes (train.eval_alongside), `begin` asks the next chunk to start the episodes in
-    them instead, `collect` records an evaluation after the chunk in which its last episode ended, and
-    `finish` completes those still running with the program, on the same policies and episodes (before
-    a checkpoint, at a stop and at the end). `placement` is the run's `sharding.SeedPlacement`, `seeds`
+    them instead, `collect` records them after the chunk in which the last one ended, and `finish`
+    completes one still running with the program, on the same policy and episodes (before a
+    checkpoint, at a stop and at the end). `placement` is the run's `sharding.SeedPlacement`, `seeds`
     its seed rows. `pending` holds the chunks' training statistics since the last evaluation began
-    (docrl_jax.train.metrics; a checkpoint keeps it).
-
-    The lanes are groups (docrl_jax.train.evaluation.Lanes): the random goals and the paper pairs. An
-    evaluation begins once the pairs' lanes are free, and includes the random goals when theirs are
-    free too; otherwise it evaluates the pairs only and its rows leave the random-goal columns empty.
-    The pairs' episodes end within ~150 steps and the random goals' run up to the step limit, so the
-    pairs are evaluated about three times as often, and each row is written as soon as its own
-    episodes have ended: a pairs-only row can come before the row of an earlier evaluation."""
+    (docrl_jax.train.metrics; a checkpoint keeps it)."""
 
     def __init__(self, programs, placement, seeds: list[int], hooks: Hooks, trained_actor: bool = False,
                  pending: dict | None = None):
@@ -219,7 +203,7 @@ class Evaluations:
         self.placement, self.seeds, self.hooks = placement, seeds, hooks
         self.alongside, self.trained_actor = programs.eval_starts is not None, trained_actor
         self.pending = metrics.empty_pending(len(seeds)) if pending is None else pending
-        self.running: list[_Running] = []   # oldest first
+        self.running: tuple | None = None   # (env steps, statistics, updates) of the one running alongside
 
     def _capture(self, state, steps: int) -> tuple:
         """What the rows of the evaluation at `steps` take from the run at that point."""
@@ -238,47 +222,30 @@ class Evaluations:
 
     def begin(self, state, steps: int):
         """(state asking the next chunk to begin the evaluation of `steps`, True), or (state, False)
-        while the pairs' lanes (the random goals' without pairs) are still running."""
-        groups = int(np.shape(state.evals.begin)[-1])
-        lead = set(range(groups)) - {TRIPS} or {TRIPS}   # the groups every evaluation runs
-        busy = set().union(*(e.waiting for e in self.running))
-        if busy & lead:
+        while another is still running."""
+        if self.running is not None:
             return state, False
-        begins = lead | ({TRIPS} - busy)
-        self.running.append(_Running(self._capture(state, steps), frozenset(begins), set(begins), {}))
-        flags = np.zeros((len(self.seeds), groups), bool)
-        flags[:, sorted(begins)] = True
-        lanes = state.evals.replace(begin=self.placement.put_seeds(flags), fresh=self.starts(self._keys(steps)))
+        self.running = self._capture(state, steps)
+        lanes = state.evals.replace(begin=self.placement.put_seeds(np.ones(len(self.seeds), bool)),
+                                    fresh=self.starts(self._keys(steps)))
         return state.replace(evals=lanes), True
 
     def collect(self, state, m: dict) -> None:
-        """Records each evaluation running alongside whose last episode ended in the chunk of `m`."""
-        if not self.running:
+        """Records the evaluation running alongside if its last episode ended in the chunk of `m`."""
+        if self.running is None or np.any(np.asarray(m["evaluation"]["running"]) > 0):
             return
-        ev = m["evaluation"]
-        running = np.asarray(ev["running"]).reshape(len(self.seeds), -1)
-        ended = {g for g in range(running.shape[1]) if not running[:, g].any()}
-        for e in list(self.running):
-            done = e.waiting & ended
-            if not done:
-                continue
-            e.waiting.difference_update(done)
-            e.results.update({k: v for k, v in ev.items() if k != "running" and column_group(k) in done})
-            if not e.waiting:   # the group that ended last still holds the evaluated policy
-                last = max(done)
-                self.running.remove(e)
-                self.hooks.record(*e.captured, e.results, {},
-                                  lambda g=last: self.placement.get(_group(state.evals.params, g)))
+        captured, self.running = self.running, None
+        results = {k: v for k, v in m["evaluation"].items() if k != "running"}
+        self.hooks.record(*captured, results, {}, lambda: self.placement.get(state.evals.params))
 
     def finish(self, state) -> None:
-        """Completes the evaluations running alongside, if any, with the program (training waits)."""
+        """Completes the evaluation running alongside, if any, with the program (training waits)."""
+        if self.running is None:
+            return
+        captured, self.running = self.running, None
         get = self.placement.get
-        while self.running:
-            e = self.running.pop(0)
-            params = _group(state.evals.params, min(e.waiting))   # a group still running holds its policy
-            results = get(self.evaluate(params, self._keys(e.captured[0])))
-            results = {k: v for k, v in results.items() if column_group(k) in e.groups}
-            self.hooks.record(*e.captured, results, {}, lambda p=params: get(p))
+        results = get(self.evaluate(state.evals.params, self._keys(captured[0])))
+        self.hooks.record(*captured, results, {}, lambda: get(state.evals.params))
 
     def first(self, state):
         """The evaluation at step 0 of a fresh run: returns the state to train on."""
@@ -286,11 +253,6 @@ class Evaluations:
             return self.begin(state, 0)[0]
         self.now(state, 0)
         return state
-
-
-def _group(params, g: int):
-    """Lane group `g`'s policy from the lanes' params (seeds, groups, ...)."""
-    return jax.tree.map(lambda x: x[:, g], params)
 
 
 class Schedule(NamedTuple):

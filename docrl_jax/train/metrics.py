@@ -52,15 +52,14 @@ def eval_rows(config, seeds: list[int], steps: int, wall_s: float, pending: dict
               trained: dict, updates) -> list[dict]:
     """metrics.csv rows (METRIC_COLUMNS) of one evaluation, one per seed row: the evaluation `ev`
     (and `trained`, the trained actor's, or {}), the training statistics accumulated in `pending`
-    since the last evaluation, and the gradient updates done. A result `ev` lacks is NaN (an evaluation
-    of the paper pairs only, alongside training, has no random-goal columns)."""
+    since the last evaluation, and the gradient updates done."""
     rows = []
     for i, seed in enumerate(seeds):
         p = {k: v[i] for k, v in pending.items()}
         eps = p["episodes"]
         learn = p["learn_iters"]
         row = {"env_steps": steps, "wall_time_s": round(wall_s, 3), "seed": seed,
-               "success_rate": math.nan, "episode_return": math.nan,
+               "success_rate": float(ev["success_rate"][i]), "episode_return": float(ev["episode_return"][i]),
                "train_episode_return": p["return_sum"] / eps if eps else math.nan,
                "train_success_rate": p["success_sum"] / eps if eps else math.nan,
                "train_episodes": int(eps),
@@ -72,8 +71,7 @@ def eval_rows(config, seeds: list[int], steps: int, wall_s: float, pending: dict
                "grad_updates": int(updates[i])}
         for k in TRAINED_ACTOR_KEYS:
             row[f"trained_actor_{k}"] = float(trained[k][i]) if k in trained else math.nan
-        for k in ("success_rate", "episode_return", "success_air_to_water", "success_water_to_air",
-                  *FAILURE_COLUMNS):
+        for k in ("success_air_to_water", "success_water_to_air", *FAILURE_COLUMNS):  # train.eval_paper_pairs
             row[k] = float(ev[k][i]) if k in ev else math.nan
         rows.append(row)
     return rows
@@ -111,10 +109,8 @@ def truncate_metrics(path: Path, env_steps: int) -> list[dict]:
         w = csv.writer(fh)
         w.writerow(header)
         w.writerows(keep)
-    # Rows are written as evaluations end (a pairs-only one may come before an earlier one): the last
-    # evaluation is the one of the most env steps.
-    newest = max((float(r[0]) for r in keep), default=None)
-    return [dict(zip(header, r)) for r in keep if float(r[0]) == newest]
+    last = [dict(zip(header, r)) for r in keep if r[0] == keep[-1][0]] if keep else []
+    return last
 
 
 # ------------------------------------------------------------------ between evaluations
@@ -151,11 +147,9 @@ def log_chunk(writer, m: dict, env_steps: int, sps: float) -> None:
         writer.add_scalar("train/grad_updates_in_chunk", float(np.mean(m["updates"])), env_steps)
 
 
-def eval_success(rows: list[dict], previous: float = math.nan) -> float:
-    """Mean random-goal success over the seed rows of one evaluation (rows as written or as read
-    back); `previous` for an evaluation without random goals (the paper pairs only)."""
-    rates = [float(r["success_rate"]) for r in rows]
-    return float(np.mean(rates)) if rows and not np.isnan(rates).any() else previous
+def eval_success(rows: list[dict]) -> float:
+    """Mean success over the seed rows of one evaluation (rows as written or as read back)."""
+    return float(np.mean([float(r["success_rate"]) for r in rows])) if rows else math.nan
 
 
 def stats_line(m: dict, last_eval_success: float) -> str:

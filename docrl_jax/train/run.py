@@ -204,7 +204,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
             metrics.append_rows(metrics_path, rows)
         for k, v in ev.items():  # every metric the evaluation returns, mean over seeds
             writer.add_scalar(f"eval/{k}", float(np.mean(v)), steps)
-        last_eval = metrics.eval_success(rows, last_eval)
+        last_eval = metrics.eval_success(rows)
         videos.after_evaluation(policy, steps, final=steps >= plan.total_env_steps)
 
     def save(state, steps: int, chunks: int):

@@ -262,8 +262,6 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
         for c in group.combinations:
             metrics.append_rows(run_dir / c.name / runs.METRICS_FILE,
                                 [r for r in out if r["combination"] == c.name], columns(grid))
-        if "success_rate" not in ev:   # the paper pairs only (alongside training): rows written, nothing to say
-            return
         mean = {c.name: metrics.eval_success([r for r in out if r["combination"] == c.name])
                 for c in group.combinations}
         console.print(f"{steps:,} env steps, {time.time() - start:.0f} s: eval success "

@@ -190,7 +190,7 @@ def make_trainer(config: Config) -> Trainer:
             def begin(rs):
                 evals, env_state = lanes.begin(rs.evals, rs.env, rs.agent.actor_average)
                 return rs.replace(evals=evals, env=env_state)
-            rs = jax.lax.cond(jnp.any(rs.evals.begin), begin, lambda rs: rs, rs)
+            rs = jax.lax.cond(rs.evals.begin, begin, lambda rs: rs, rs)
         rs, m = jax.lax.scan(iteration, rs, None, length=iters_per_chunk)
         out = _chunk_summary(m)
         if lanes:  # the lanes' tally after this chunk: final once none is running
