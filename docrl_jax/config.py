@@ -576,8 +576,9 @@ def pair_scenario(c: Config) -> int:
 
 
 def nominal_env_kwargs(c: Config) -> dict[str, Any]:
-    """`env_kwargs` without the domain randomisation (`dr_*`): the nominal plant of the paper's test."""
-    return {k: v for k, v in env_kwargs(c).items() if not k.startswith("dr_")}
+    """`env_kwargs` without the domain randomisation (`dr_*`) and the training-only collision margin: the
+    nominal plant and task of the paper's test."""
+    return {k: v for k, v in env_kwargs(c).items() if not k.startswith("dr_") and k != "collision_margin"}
 
 
 def pairs_own_env(c: Config) -> bool:
@@ -592,6 +593,8 @@ def alongside_blocker(c: Config) -> str | None:
     and one policy must drive them."""
     if c.train.eval_trained_actor and c.agent.policy_average_tau < 1.0:
         return "train.eval_trained_actor evaluates a second policy on the same episodes"
+    if env_kwargs(c).get("collision_margin", 0.0) > 0.0:
+        return "env.collision_margin ends the training env's episodes earlier than an evaluation's"
     if pairs_own_env(c):
         return (f"the paper pairs run in scenario {pair_scenario(c)} with the nominal plant, not in the training "
                 f"env (env.scenario={c.env.scenario}" + (", dr_* ranges)" if nominal_env_kwargs(c) != env_kwargs(c)

@@ -83,13 +83,18 @@ def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_r
     assert not config_from_dict(generalist, backend="gpu", notes=notes).train.eval_alongside
     assert any(n.startswith("train.eval_alongside auto -> false (the paper pairs run in scenario 2") for n in notes)
     for sets in (["train.eval_alongside=true", "env.scenario=0"], ["train.eval_alongside=true", "env.dr_wind_scale=[1.0, 2.0]"],
-                 ["train.eval_alongside=true", "train.eval_trained_actor=true"]):
+                 ["train.eval_alongside=true", "train.eval_trained_actor=true"],
+                 ["train.eval_alongside=true", "env.collision_margin=0.2", "env.goal_clearance=0.8",
+                  "train.eval_paper_pairs=false"]):
         with pytest.raises(ConfigError, match="train.eval_alongside.*not possible here.*set it false"):
             load_config("td3_lstm", sets)
     # Pairs of the training env's own scenario and plant, or no pairs: possible.
     assert load_config("td3_lstm", ["train.eval_alongside=true", "env.scenario=3"]).train.eval_alongside
     assert load_config("td3_lstm", ["train.eval_alongside=true", "env.scenario=0",
                                     "train.eval_paper_pairs=false"]).train.eval_alongside
+    # The training-only collision margin: the pairs get the env without it, an env of their own.
+    margin = load_config("td3_lstm", ["env.collision_margin=0.2", "env.goal_clearance=0.8"])
+    assert cfg.pairs_own_env(margin) and "collision_margin" not in cfg.nominal_env_kwargs(margin)
     with pytest.raises(ConfigError, match="eval_alongside='maybe': must be a bool .* or 'auto'"):
         load_config("td3_lstm", ["train.eval_alongside=maybe"])
 

@@ -276,7 +276,7 @@ class HUAUVEnv:
         # 5. Events and reward (collision on the noise-free geometry).
         _, solids, lo = self._tank(sim.layout)
         hi = p.bounds[1]
-        collision = (jnp.min(true_ranges) < p.collision_distance) | (
+        collision = (jnp.min(true_ranges) < p.collision_distance + p.collision_margin) | (
             geometry.hull_clearance(solids, position, rot) < 0.0)
         out_of_bounds = (position[2] < lo) | (position[2] > hi)
         terminated = collision | out_of_bounds | ~finite_state

@@ -39,6 +39,10 @@ class EnvParams:
     max_episode_steps: int = documented(500, "Steps before truncation (paper: 500).")
     arrival_distance: float = documented(0.5, "Goal reached when the 3-D distance is below this (paper c_d = 0.5 m).")
     collision_distance: float = documented(0.5, "Collision when the smallest range is below this (paper c_o = 0.5 m).")
+    collision_margin: float = documented(0.0,
+        "Ours, training only: the training episodes end as collisions already when the smallest range is below "
+        "collision_distance + this, so a policy learns to keep a margin from what its fan sees. Every "
+        "evaluation (the trainer's, the evaluator's, the robustness benchmark's) runs without it.")
     reward_arrive: float = documented(100.0, "Reward on arrival (paper r_arrive).")
     reward_collide: float = documented(-10.0, "Reward on collision or leaving the vertical bounds (paper r_collide).")
     reward_timeout: float = documented(-10.0, "Reward when the step limit is reached (paper: r_collide at ep = 500).")
@@ -299,9 +303,12 @@ def validate(p: EnvParams) -> EnvParams:
     for name in positive:
         if getattr(p, name) <= 0:
             _fail(name, getattr(p, name), "must be > 0")
-    nonneg = ["collision_distance", "progress_reward_scale", "goal_clearance", "wall_margin", "lidar_min_range",
+    nonneg = ["collision_distance", "collision_margin", "progress_reward_scale", "goal_clearance", "wall_margin", "lidar_min_range",
               "sensor_noise_std", "vel_i_gain", "vel_i_limit", "vel_i_band", "vel_i_rate", "rotor_moment_constant",
               "hull_volume", "wind_theta", "wind_sigma", "min_goal_distance"]
+    if p.goal_clearance <= p.collision_distance + p.collision_margin:
+        _fail("goal_clearance", p.goal_clearance, f"must exceed collision_distance + collision_margin = "
+              f"{p.collision_distance + p.collision_margin:g} m, or a start or goal could be a collision")
     if p.max_goal_distance <= p.min_goal_distance:
         _fail("max_goal_distance", p.max_goal_distance, f"must exceed min_goal_distance={p.min_goal_distance}")
     for name in nonneg:

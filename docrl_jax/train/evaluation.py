@@ -10,7 +10,8 @@ nominal plant) are run too, from the evaluator's trial starts (`train.eval_pair_
 `pair_starts`), and for each pair the fractions of episodes that ended in a collision or out of
 bounds are reported too (the rest of the failures are time-outs): a direction that stalls below 90 %
 says why in metrics.csv. The full protocol of the paper (100 trials, times in air/water, 0.01 m range
-noise) is the evaluator's job, not this module's; these episodes use the training env's settings.
+noise) is the evaluator's job, not this module's; these episodes use the training env's settings
+(without `env.collision_margin`, which is for training only).
 
 The same episodes run in one of two ways:
 
@@ -111,7 +112,9 @@ class Evaluation(NamedTuple):
 
 
 def make_evaluation(config: Config, act, init_carry, memory: bool, train_env) -> Evaluation:
-    env = envs.make(config.env.scenario, auto_reset=False, **{**env_kwargs(config), "terminate_on_arrival": True})
+    # The evaluation's own episodes end at arrival and have no training-only collision margin.
+    env = envs.make(config.env.scenario, auto_reset=False,
+                    **{**env_kwargs(config), "terminate_on_arrival": True, "collision_margin": 0.0})
     scenario = pair_scenario(config)
     # The pairs get an env of their own only when they run and differ from the training env.
     pair_env = (envs.make(scenario, auto_reset=False, **{**nominal_env_kwargs(config), "terminate_on_arrival": True})

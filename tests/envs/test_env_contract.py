@@ -29,6 +29,8 @@ def test_make_rejects_unknown_names_listing_valid_ones():
     ({"lidar_max_range": float("nan")}, "finite"),
     ({"z_bounds": (1.0, 4.0)}, "z_min < 0"),
     ({"added_mass": (1.0, 1.0)}, "3 finite numbers"),
+    ({"collision_margin": -0.1}, "collision_margin.*>= 0"),
+    ({"collision_margin": 0.5}, r"goal_clearance=1.0: must exceed collision_distance \+ collision_margin = 1 m"),
 ])
 def test_make_rejects_invalid_values(kwargs, fragment):
     kwargs = dict(kwargs)

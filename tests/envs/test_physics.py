@@ -136,6 +136,16 @@ def test_collision_with_riser_terminates_with_penalty(env_fns):
     assert float(info["position"][i][1]) < 2 - 0.6 - 0.4    # stopped by the range check, before touching
 
 
+def test_collision_margin_ends_the_episode_further_out(env_fns):
+    # The approach above with env.collision_margin 0.3: the range check fires at 0.8 m, not 0.5 m.
+    _, _, rew, done, info = _run(env_fns, (2.0, -0.5, 2.0), np.pi / 2, (1.0, 0.0, 0.0), 60, scenario=2,
+                                 collision_margin=0.3)
+    i = int(np.argmax(np.asarray(done)))
+    assert np.asarray(done)[i] and bool(info["collision"][i]) and float(rew[i]) == -10.0
+    ranges = np.asarray(info["ranges"]).min(axis=1)
+    assert 0.5 < ranges[i] < 0.8 <= ranges[i - 1], ranges[i - 1:i + 1]
+
+
 def test_hull_touching_a_thin_obstacle_is_caught_without_ranges(env_fns):
     # With the range check off, only the geometric hull test can stop the vehicle at the riser surface.
     _, _, rew, done, info = _run(env_fns, (2.0, -0.2, 2.0), np.pi / 2, (1.0, 0.0, 0.0), 60, scenario=2, wind=False,
