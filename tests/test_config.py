@@ -61,6 +61,8 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     assert env["dr_mass_scale"] == (0.8, 1.2) and env["vel_i_rate"] == 0.3
     # the beams up and down, which the actor and critics see as two more observation floats
     assert env["vertical_beams"] and observation_size(g) == 28 and observation_size(load_config("td3_lstm")) == 26
+    # a collision margin in training only: the pairs, evaluated without it, get their own env
+    assert env["collision_margin"] == 0.2 and env["goal_clearance"] == 0.8 and not g.train.eval_alongside
     for key, value in env.items():
         if key.startswith("dr_"):
             assert value[0] <= value[1], key
