@@ -83,6 +83,11 @@ def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_r
     notes = []
     generalist = yaml.safe_load((packaged_configs_dir() / "td3_lstm_generalist.yaml").read_text())
     assert not config_from_dict(generalist, backend="gpu", notes=notes).train.eval_alongside
+    assert any(n.startswith("train.eval_alongside auto -> false (env.collision_margin ends the training env's")
+               for n in notes)
+    notes = []
+    del generalist["env"]["collision_margin"]
+    assert not config_from_dict(generalist, backend="gpu", notes=notes).train.eval_alongside
     assert any(n.startswith("train.eval_alongside auto -> false (the paper pairs run in scenario 2") for n in notes)
     for sets in (["train.eval_alongside=true", "env.scenario=0"], ["train.eval_alongside=true", "env.dr_wind_scale=[1.0, 2.0]"],
                  ["train.eval_alongside=true", "train.eval_trained_actor=true"],
