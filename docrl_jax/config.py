@@ -575,10 +575,14 @@ def pair_scenario(c: Config) -> int:
     return c.env.scenario or c.train.eval_pair_scenario
 
 
+def evaluation_env_kwargs(c: Config) -> dict[str, Any]:
+    """`env_kwargs` without the training-only `env.collision_margin`: what every evaluation episode runs with."""
+    return {k: v for k, v in env_kwargs(c).items() if k != "collision_margin"}
+
+
 def nominal_env_kwargs(c: Config) -> dict[str, Any]:
-    """`env_kwargs` without the domain randomisation (`dr_*`) and the training-only collision margin: the
-    nominal plant and task of the paper's test."""
-    return {k: v for k, v in env_kwargs(c).items() if not k.startswith("dr_") and k != "collision_margin"}
+    """`evaluation_env_kwargs` without the domain randomisation (`dr_*`): the nominal plant of the paper's test."""
+    return {k: v for k, v in evaluation_env_kwargs(c).items() if not k.startswith("dr_")}
 
 
 def pairs_own_env(c: Config) -> bool:

@@ -102,6 +102,7 @@ def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_r
     # The training-only collision margin: the pairs get the env without it, an env of their own.
     margin = load_config("td3_lstm", ["env.collision_margin=0.2", "env.goal_clearance=0.8"])
     assert cfg.pairs_own_env(margin) and "collision_margin" not in cfg.nominal_env_kwargs(margin)
+    assert cfg.evaluation_env_kwargs(margin) == {k: v for k, v in cfg.env_kwargs(margin).items() if k != "collision_margin"}
     with pytest.raises(ConfigError, match="eval_alongside='maybe': must be a bool .* or 'auto'"):
         load_config("td3_lstm", ["train.eval_alongside=maybe"])
 

@@ -303,9 +303,9 @@ def validate(p: EnvParams) -> EnvParams:
     for name in positive:
         if getattr(p, name) <= 0:
             _fail(name, getattr(p, name), "must be > 0")
-    nonneg = ["collision_distance", "collision_margin", "progress_reward_scale", "goal_clearance", "wall_margin", "lidar_min_range",
-              "sensor_noise_std", "vel_i_gain", "vel_i_limit", "vel_i_band", "vel_i_rate", "rotor_moment_constant",
-              "hull_volume", "wind_theta", "wind_sigma", "min_goal_distance"]
+    nonneg = ["collision_distance", "collision_margin", "progress_reward_scale", "goal_clearance", "wall_margin",
+              "lidar_min_range", "sensor_noise_std", "vel_i_gain", "vel_i_limit", "vel_i_band", "vel_i_rate",
+              "rotor_moment_constant", "hull_volume", "wind_theta", "wind_sigma", "min_goal_distance"]
     if p.goal_clearance <= p.collision_distance + p.collision_margin:
         _fail("goal_clearance", p.goal_clearance, f"must exceed collision_distance + collision_margin = "
               f"{p.collision_distance + p.collision_margin:g} m, or a start or goal could be a collision")

@@ -182,8 +182,9 @@ class Renderer:
               trail=None, cam_yaw: float | None = None, vehicle: bool = True, vertical_ranges=None) -> np.ndarray:
         """One frame (H, W, 3) uint8 of the vehicle at `qpos` heading for `goal`. `ranges`: the active
         fan's ranges and `vertical_ranges` the up and down beams' (both drawn when the renderer's `fan` is
-        on); `underwater`: which fan (default: by the vehicle's depth); `trail`: past positions (k, 3); `cam_yaw`: the follow camera's heading in
-        radians (default the vehicle's); `vehicle=False` leaves the vehicle out (tests find its pixels)."""
+        on); `underwater`: which fan (default: by the vehicle's depth); `trail`: past positions (k, 3);
+        `cam_yaw`: the follow camera's heading in radians (default the vehicle's); `vehicle=False` leaves
+        the vehicle out (tests find its pixels)."""
         qpos = np.asarray(qpos, np.float64)
         self.data.qpos[:] = qpos
         mujoco.mj_kinematics(self.model, self.data)

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 from flax import struct
 
 import docrl_jax.envs as envs
-from docrl_jax.config import Config, env_kwargs, nominal_env_kwargs, pair_scenario, pairs_own_env
+from docrl_jax.config import Config, evaluation_env_kwargs, nominal_env_kwargs, pair_scenario, pairs_own_env
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, trial_starts
 
 
@@ -112,9 +112,8 @@ class Evaluation(NamedTuple):
 
 
 def make_evaluation(config: Config, act, init_carry, memory: bool, train_env) -> Evaluation:
-    # The evaluation's own episodes end at arrival and have no training-only collision margin.
     env = envs.make(config.env.scenario, auto_reset=False,
-                    **{**env_kwargs(config), "terminate_on_arrival": True, "collision_margin": 0.0})
+                    **{**evaluation_env_kwargs(config), "terminate_on_arrival": True})
     scenario = pair_scenario(config)
     # The pairs get an env of their own only when they run and differ from the training env.
     pair_env = (envs.make(scenario, auto_reset=False, **{**nominal_env_kwargs(config), "terminate_on_arrival": True})
