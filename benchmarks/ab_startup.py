@@ -15,6 +15,9 @@ writes after the first chunk (`spawn_to_first_chunk_s`, imports included, the sa
 and to its exit (`spawn_to_exit_s`: the final evaluation included); `first_eval_row_s` is the
 wall_time_s of the run's first metrics.csv row (when the first evaluation's results were in, on the
 trainer's clock).
+
+`--new-env NAME=VALUE` (repeatable) sets an environment variable for the new side's launches only,
+to compare one setting on the same code (`.old` a copy of this tree), e.g. an `XLA_FLAGS` value.
 """
 
 from __future__ import annotations
@@ -36,8 +39,8 @@ KEYS = ("spawn_to_first_chunk_s", "launch_to_compiled_s", "launch_to_training_s"
         "compile_s", "first_eval_row_s", "spawn_to_exit_s")
 
 
-def launch(root: str, cache: str, run_dir: str, config: str) -> dict:
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root] + [p for p in os.environ.get("PYTHONPATH", "").split(
+def launch(root: str, cache: str, run_dir: str, config: str, extra_env: dict) -> dict:
+    env = {**os.environ, **extra_env, "PYTHONPATH": os.pathsep.join([root] + [p for p in os.environ.get("PYTHONPATH", "").split(
         os.pathsep) if p and os.path.abspath(p) != os.path.abspath(os.getcwd())])}
     startup = os.path.join(run_dir, "startup.json")
     # The trainer's output goes to a file, not a pipe: a pipe nobody reads while polling would fill
@@ -70,7 +73,12 @@ def main() -> None:
     ap.add_argument("--warm", type=int, default=1, help="warm launches per version and round (after its cold one)")
     ap.add_argument("--config", default="td3_lstm")
     ap.add_argument("--out", required=True)
+    ap.add_argument("--new-env", action="append", default=[], metavar="NAME=VALUE",
+                    help="an environment variable for the new side's launches only (repeatable)")
     args = ap.parse_args()
+    if bad := [x for x in args.new_env if "=" not in x]:
+        ap.error(f"--new-env takes NAME=VALUE, got {bad}")
+    side_env = {"old": {}, "new": dict(x.split("=", 1) for x in args.new_env)}
     roots = {"old": os.path.abspath(args.old), "new": os.getcwd()}
     rows = []
     work = tempfile.mkdtemp(prefix="ab_startup_")
@@ -80,7 +88,7 @@ def main() -> None:
             for side, root in roots.items():
                 cache = os.path.join(work, f"cache_{side}_{r}")
                 run_dir = os.path.join(work, f"run_{side}_{r}_{state}{i}")
-                got = launch(root, cache, run_dir, args.config)
+                got = launch(root, cache, run_dir, args.config, side_env[side])
                 rows.append({"round": r, "version": side, "cache": state, **{k: got[k] for k in KEYS}})
                 print(side, state, r, got["spawn_to_first_chunk_s"], flush=True)
     summary = {f"{side} {state}": {k: statistics.median(x[k] for x in rows if x["version"] == side and x["cache"] == state)
@@ -90,7 +98,8 @@ def main() -> None:
     with open(os.path.join(args.out, "ab_startup.json"), "w") as f:
         json.dump({**meta, "rounds": rows, "medians": summary}, f, indent=1)
     lines = [f"# Start-up, old and new code, launch by launch ({meta['gpu']}, {meta['date']})", "",
-             f"Command: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
+             f"Command: `{meta['command']}`  ",
+             f"New side's environment: {side_env['new'] or 'as the old'}  ", f"Versions: {meta['versions']}", "",
              f"Medians of {args.rounds} cold and {args.rounds * args.warm} warm launches per version (s):", "",
              "| version, cache | spawn -> first chunk | launch -> compiled | launch -> training | "
              "launch -> first chunk | compile or load | first evaluation row | spawn -> exit |",
