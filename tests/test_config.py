@@ -63,6 +63,8 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     assert env["vertical_beams"] and observation_size(g) == 28 and observation_size(load_config("td3_lstm")) == 26
     # a collision margin in training only: the pairs, evaluated without it, get their own env
     assert env["collision_margin"] == 0.2 and env["goal_clearance"] == 0.8 and not g.train.eval_alongside
+    # a collision costs what arriving earns (the paper: -10); the evaluations keep the run's reward
+    assert env["reward_collide"] == -100.0 and cfg.evaluation_env_kwargs(g)["reward_collide"] == -100.0
     for key, value in env.items():
         if key.startswith("dr_"):
             assert value[0] <= value[1], key
