@@ -40,8 +40,9 @@ KEYS = ("spawn_to_first_chunk_s", "launch_to_compiled_s", "launch_to_training_s"
 
 
 def launch(root: str, cache: str, run_dir: str, config: str, extra_env: dict) -> dict:
-    env = {**os.environ, **extra_env, "PYTHONPATH": os.pathsep.join([root] + [p for p in os.environ.get("PYTHONPATH", "").split(
-        os.pathsep) if p and os.path.abspath(p) != os.path.abspath(os.getcwd())])}
+    path = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
+            if p and os.path.abspath(p) != os.path.abspath(os.getcwd())]
+    env = {**os.environ, **extra_env, "PYTHONPATH": os.pathsep.join([root] + path)}
     startup = os.path.join(run_dir, "startup.json")
     # The trainer's output goes to a file, not a pipe: a pipe nobody reads while polling would fill
     # and stall the launch being timed.
