@@ -564,7 +564,8 @@ def env_kwargs(c: Config) -> dict[str, Any]:
 
 
 def observation_size(c: Config) -> int:
-    """Floats in one observation of the run's env (`EnvParams.observation_size`: env.vertical_beams adds two)."""
+    """Floats in one observation of the run's env (`EnvParams.observation_size`: env.vertical_beams
+    adds two, env.slant_beams two rings)."""
     from docrl_jax.envs import make_params
     return make_params(c.env.scenario, **env_kwargs(c)).observation_size
 

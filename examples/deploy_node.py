@@ -66,12 +66,13 @@ def load_policy(export_dir: Path, artefact: str):
 def build_observation(manifest: dict, ranges_m, underwater: bool, previous_action, position, yaw: float, goal):
     """The observation floats (policy.json "observation"): ranges over the active sensor's maximum, the
     previous action, then the goal's bearing / pi, elevation / (pi / 2) and distance / scale: 26. A
-    policy trained with vertical beams (a "vertical_ranges" entry, 28 floats) takes 22 ranges, the fan's
-    then up and down, and gets the last two at the end."""
+    policy trained with vertical or slanted beams ("vertical_ranges", "slanted_ranges" entries) takes
+    their ranges after the fan's, in the manifest's order, and gets them at the end."""
     layout = {entry["name"]: entry for entry in manifest["observation"]["layout"]}
     beams, goal_distance = layout["ranges"], layout["goal_distance"]
     num_beams = beams["index"][1] + 1
-    num_ranges = num_beams + (2 if "vertical_ranges" in layout else 0)
+    num_ranges = num_beams + sum(layout[name]["index"][1] - layout[name]["index"][0] + 1
+                                 for name in ("vertical_ranges", "slanted_ranges") if name in layout)
     if len(ranges_m) != num_ranges:
         raise ValueError(f"{len(ranges_m)} ranges given; this policy takes {num_ranges} (policy.json observation)")
     max_range = beams["sonar" if underwater else "lidar"]["max_range_m"]
@@ -97,6 +98,8 @@ class FakeVehicle:
         self.speeds = [entry["max_m_s" if "max_m_s" in entry else "max"] for entry in manifest["action"]["layout"]]
         layout = {entry["name"]: entry for entry in manifest["observation"]["layout"]}
         self.fans, self.vertical = layout["ranges"], "vertical_ranges" in layout
+        if "slanted_ranges" in layout:   # rings of beams against walls and floor: not worth a demo's geometry
+            raise ValueError("this fake vehicle casts the fans and the vertical beams only, not slanted beams")
         self.num_beams = self.fans["index"][1] + 1
 
     def ranges(self):

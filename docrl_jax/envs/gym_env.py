@@ -65,7 +65,7 @@ RENDER_FPS = 5   # one frame per control step (0.2 s) plays in real time
 
 def observation_space(size: int = OBS_SIZE) -> spaces.Box:
     """Bounds of the observations (`huauv.observation_bounds`; `size` is the env's `observation_size`,
-    28 with vertical_beams)."""
+    more with vertical_beams or slant_beams)."""
     low, high = observation_bounds(size)
     return spaces.Box(low=low, high=high, dtype=np.float32)
 

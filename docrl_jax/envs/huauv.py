@@ -11,6 +11,7 @@ Observation layout (26 floats), see `OBS_LAYOUT`:
     24    elevation angle of the goal, / (pi / 2), in [-1, 1]
     25    3-D distance to the goal / DIST_SCALE (the tank's diagonal), clipped to [0, 1]
     26-27 with `vertical_beams` only: the ranges up and down (body +z, -z) / the active sensor's maximum
+    then, with `slant_beams` n: the upper ring's n ranges, then the lower ring's, / the same maximum
 """
 
 from __future__ import annotations
@@ -32,14 +33,15 @@ OBS_SIZE = PAPER_OBS_SIZE   # with vertical_beams: 28 (`env.observation_size`, `
 ACTION_SIZE = 3
 DIST_SCALE = float(np.sqrt(9.8**2 + 9.8**2 + 6.1**2))  # inner tank diagonal, 15.14 m
 OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 23, "elevation": 24,
-              "distance": 25, "vertical": slice(26, 28)}   # "vertical": with vertical_beams only
+              "distance": 25, "vertical": slice(26, 28),   # "vertical": with vertical_beams only
+              "extra_beams": slice(26, None)}   # every range after the paper's 26: vertical, then slanted
 
 
 def observation_bounds(size: int = OBS_SIZE) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) of each of `size` observation floats (an env's `observation_size`): the ranges, the
-    distance and the vertical ranges in [0, 1], the rest in [-1, 1]."""
+    distance and the extra beams' ranges in [0, 1], the rest in [-1, 1]."""
     low = -np.ones(size, np.float32)
-    for name in ("ranges", "distance", "vertical"):
+    for name in ("ranges", "distance", "extra_beams"):
         low[OBS_LAYOUT[name]] = 0.0
     return low, np.ones(size, np.float32)
 

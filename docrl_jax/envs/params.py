@@ -18,7 +18,8 @@ from docrl_jax import schema
 from docrl_jax.schema import documented
 
 Vec3 = tuple[float, float, float]
-# The paper's observation (docrl_jax/envs/huauv.py lays it out) and the beams `vertical_beams` adds.
+# The paper's observation (docrl_jax/envs/huauv.py lays it out) and the beams `vertical_beams` adds
+# (`slant_beams` adds two rings of its own count).
 PAPER_OBS_SIZE = 26
 VERTICAL_BEAMS = 2
 
@@ -84,6 +85,14 @@ class EnvParams:
         "upward and a downward range finder, appended to the observation (28 floats). They see what the "
         "fans see (walls, floor, obstacles; not the water surface), so they show beams above or below "
         "the vehicle, which the horizontal fans miss. The collision check on ranges stays on the fans.")
+    slant_beams: int = documented(0,
+        "Ours (not in the paper's state): two rings of this many beams of the active sensor, slanted "
+        "slant_elevation_deg above and below the body x-y plane at bearings k * 360 / n from body x, "
+        "appended after the vertical beams (the upper ring, then the lower; 2 n more floats). They see "
+        "what the fans see, so they show the edge of an obstacle the hull would clip while climbing or "
+        "descending past it, which neither the fans nor the vertical beams catch. 0 = none.")
+    slant_elevation_deg: float = documented(30.0, "Elevation of the slant_beams rings from the body x-y plane "
+                                                  "(degrees, in (0, 90)).")
 
     # ---------------------------------------------------------------- command mapping (orig 2.3, 4.2)
     max_forward_speed: float = documented(0.25, "a0 = -1..1 maps to forward speed 0..this (m/s).")
@@ -215,8 +224,8 @@ class EnvParams:
 
     @property
     def observation_size(self) -> int:
-        """Floats in an observation: the paper's 26, plus the two vertical beams when they are on."""
-        return PAPER_OBS_SIZE + VERTICAL_BEAMS * self.vertical_beams
+        """Floats in an observation: the paper's 26, plus the vertical and slanted beams that are on."""
+        return PAPER_OBS_SIZE + VERTICAL_BEAMS * self.vertical_beams + 2 * self.slant_beams
 
     @property
     def water_z(self) -> tuple[float, float]:
@@ -238,6 +247,7 @@ class EnvParams:
 VEHICLE_FIELDS = frozenset({
     "control_dt", "physics_dt",
     "lidar_fov_deg", "lidar_min_range", "lidar_max_range", "sonar_fov_deg", "sonar_max_range", "vertical_beams",
+    "slant_beams", "slant_elevation_deg",
     "max_forward_speed", "max_vertical_speed", "max_yaw_change",
     "vel_p_gain", "vel_i_gain", "vel_i_band", "vel_i_rate", "vel_i_limit", "max_tilt_deg", "att_gain", "rate_gain",
     "rotor_max_thrust_air", "rotor_max_thrust_water", "rotor_tau_up", "rotor_tau_down", "rotor_moment_constant",
@@ -323,6 +333,10 @@ def validate(p: EnvParams) -> EnvParams:
             _fail(name, getattr(p, name), "must be a probability in [0, 1]")
     if p.max_tilt_deg >= 80:
         _fail("max_tilt_deg", p.max_tilt_deg, "must be below 80 degrees")
+    if isinstance(p.slant_beams, bool) or not isinstance(p.slant_beams, int) or p.slant_beams < 0:
+        _fail("slant_beams", p.slant_beams, "must be an integer >= 0 (beams per ring; 0 = none)")
+    if not 0 < p.slant_elevation_deg < 90:
+        _fail("slant_elevation_deg", p.slant_elevation_deg, "must be in (0, 90) degrees")
     if p.lidar_fov_deg > 360 or p.sonar_fov_deg > 360:
         _fail("lidar_fov_deg/sonar_fov_deg", (p.lidar_fov_deg, p.sonar_fov_deg), "must be <= 360")
     lo, hi = p.bounds

@@ -299,7 +299,12 @@ class Renderer:
             dirs = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], -1) @ rot.T
             if vertical_ranges is not None and len(vertical_ranges):
                 ranges = np.concatenate([ranges, np.asarray(vertical_ranges, np.float64)])
-                dirs = np.concatenate([dirs, sensors.VERTICAL_DIRECTIONS @ rot.T])
+                extra = sensors.extra_directions(self.params)
+                if len(extra) != len(vertical_ranges):
+                    raise ValueError(f"{len(vertical_ranges)} ranges after the fan, but the renderer's params have "
+                                     f"{len(extra)} such beams (vertical_beams, slant_beams): render with the "
+                                     "params of the env that recorded them")
+                dirs = np.concatenate([dirs, extra @ rot.T])
             limit = self.params.sonar_max_range if underwater else self.params.lidar_max_range
             rgba = SONAR_RGBA if underwater else LIDAR_RGBA
             for d, rng in zip(dirs, ranges):

@@ -5,8 +5,9 @@ geoms (walls, floor, obstacles), never the water surface or the vehicle. The med
 the vehicle's centre below z = 0 selects the sonar (orig 3.3, a hard switch). Only the active fan is
 cast: 20 rays per control step, the same count in both media, so one vmapped `mjx.ray` serves both.
 
-With `vertical_beams` two more beams of the active sensor point along body +z and -z and see what the
-fans see.
+With `vertical_beams` two more beams of the active sensor point along body +z and -z, and with
+`slant_beams` two rings of beams slant above and below the body plane; they see what the fans see
+(`extra_directions`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 from docrl_jax.envs._quiet_import import mjx  # mujoco.mjx, without its notice about the optional Warp backend
 from docrl_jax.envs.params import EnvParams
 
-NUM_BEAMS = 20  # per fan; with vertical_beams `cast` returns two more ranges after them
+NUM_BEAMS = 20  # per fan; `cast` returns the `extra_directions` beams after them
 RAY_GEOMGROUP = (0, 1, 0, 0, 0, 0)  # only group 1 (assets/common.xml)
 VERTICAL_DIRECTIONS = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]], np.float32)  # vertical_beams: body +z, -z
 
@@ -30,12 +31,25 @@ def beam_angles(fov_deg: float) -> np.ndarray:
     return np.deg2rad(np.linspace(-fov_deg / 2.0, fov_deg / 2.0, NUM_BEAMS)).astype(np.float32)
 
 
+def extra_directions(p: EnvParams) -> np.ndarray:
+    """Body-frame unit directions (k, 3) of the beams after the fan: body +z and -z with
+    vertical_beams, then the upper and the lower slant_beams ring, each from bearing 0 (body x)
+    counter-clockwise."""
+    parts = [VERTICAL_DIRECTIONS] if p.vertical_beams else []
+    if p.slant_beams:
+        bearing = 2.0 * np.pi * np.arange(p.slant_beams) / p.slant_beams
+        elev = np.deg2rad(p.slant_elevation_deg)
+        for sign in (1.0, -1.0):
+            parts.append(np.stack([np.cos(elev) * np.cos(bearing), np.cos(elev) * np.sin(bearing),
+                                   np.full_like(bearing, sign * np.sin(elev))], -1))
+    return np.concatenate(parts).astype(np.float32) if parts else np.zeros((0, 3), np.float32)
+
+
 def beam_directions(p: EnvParams, rot: jnp.ndarray, underwater: jnp.ndarray) -> jnp.ndarray:
-    """World-frame unit directions (20, 3) of the active fan, then (with vertical_beams) body +z, -z."""
+    """World-frame unit directions (20 + k, 3): the active fan, then `extra_directions`."""
     angles = jnp.where(underwater, beam_angles(p.sonar_fov_deg), beam_angles(p.lidar_fov_deg))
     local = jnp.stack([jnp.cos(angles), jnp.sin(angles), jnp.zeros_like(angles)], -1)
-    if p.vertical_beams:
-        local = jnp.concatenate([local, VERTICAL_DIRECTIONS])
+    local = jnp.concatenate([local, extra_directions(p)])
     return local @ rot.T
 
 
@@ -44,8 +58,8 @@ def max_range(p: EnvParams, underwater: jnp.ndarray) -> jnp.ndarray:
 
 
 def cast(p: EnvParams, model: mjx.Model, data: mjx.Data, vehicle_body: int, position, rot, underwater):
-    """Noise-free ranges (20,) in metres, (22,) with vertical_beams (the fan first); a beam that hits
-    nothing within range reads the maximum."""
+    """Noise-free ranges (20 + k,) in metres, the fan first, then the k `extra_directions`; a beam that
+    hits nothing within range reads the maximum."""
     dirs = beam_directions(p, rot, underwater)
     ray = functools.partial(mjx.ray, model, data, geomgroup=RAY_GEOMGROUP, flg_static=True,
                             bodyexclude=vehicle_body)

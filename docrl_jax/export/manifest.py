@@ -2,9 +2,9 @@
 the units a vehicle's software has to produce and consume, read from the run's own environment
 parameters (its beams, ranges, speeds and control period), and where the policy came from.
 
-Everything a deployment needs to build the 26 observation floats (28 with vertical beams) is here:
-which float is which beam, the normalisations, the goal vector's definitions; then the action's
-meaning, the carry and its reset.
+Everything a deployment needs to build the observation (26 floats, more with vertical or slanted
+beams) is here: which float is which beam, the normalisations, the goal vector's definitions; then
+the action's meaning, the carry and its reset.
 """
 
 from __future__ import annotations
@@ -43,10 +43,17 @@ def _beams(fov_deg: float, max_range: float) -> dict[str, Any]:
 
 def observation_spec(config: Config) -> dict[str, Any]:
     p = make_params(config.env.scenario, **env_kwargs(config))
-    vertical = [{"index": [OBS_SIZE, p.observation_size - 1], "name": "vertical_ranges",
+    vertical = [{"index": [OBS_SIZE, OBS_SIZE + 1], "name": "vertical_ranges",
                  "value": "range / max range of the active sensor, in [0, 1], of two beams from the vehicle centre "
                           "along body +z (up), then body -z (down); like the fans they see walls, floor and "
                           "obstacles, not the water surface"}] if p.vertical_beams else []
+    first = OBS_SIZE + 2 * p.vertical_beams
+    slanted = [{"index": [first, p.observation_size - 1], "name": "slanted_ranges",
+                "value": f"range / max range of the active sensor, in [0, 1], of two rings of {p.slant_beams} beams "
+                         f"from the vehicle centre, {p.slant_elevation_deg:g} degrees above (the first ring), then "
+                         "below the body x-y plane, at bearings k * 360 / n degrees from body x, counter-clockwise "
+                         "positive; like the fans they see walls, floor and obstacles, not the water surface"}
+               ] if p.slant_beams else []
     return {
         "size": p.observation_size, "dtype": "float32", "shape": [BATCH, p.observation_size],
         "frame": "world frame, z up, water surface at z = 0; (dx, dy, dz) = goal - vehicle centre (m); yaw = "
@@ -72,6 +79,7 @@ def observation_spec(config: Config) -> dict[str, Any]:
             {"index": NUM_BEAMS + ACTION_SIZE + 2, "name": "goal_distance", "scale_m": DIST_SCALE,
              "value": f"min(sqrt(dx^2 + dy^2 + dz^2) / {DIST_SCALE:.4f} m, 1) (the training tank's inner diagonal)"},
             *vertical,
+            *slanted,
         ],
         "non_finite": "the simulator's observation replaces NaN by 0; give the policy finite values",
     }

@@ -7,6 +7,7 @@ The states come from the reference env the env contract and adapter tests compil
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -146,9 +147,12 @@ def test_vertical_beams_drawn_above_and_below_the_vehicle(states):
     track = track_from_states([s["west"]])
     assert track.vertical_ranges.shape == (1, 0)
     args = (track.qpos[0], track.goal[0], track.ranges[0], False)
-    with Renderer(env.mj_model, env.params, 160, 120, camera="follow", overlay=False) as r:
+    with Renderer(env.mj_model, dataclasses.replace(env.params, vertical_beams=True), 160, 120, camera="follow",
+                  overlay=False) as r:
         plain = r.frame(*args).astype(int)
         beams = np.abs(r.frame(*args, vertical_ranges=np.array([1.5, 1.5])).astype(int) - plain).max(-1) > 25
+        with pytest.raises(ValueError, match="vertical_beams, slant_beams"):
+            r.frame(*args, vertical_ranges=np.array([1.5, 1.5, 1.5]))
         vehicle = np.argwhere(_vehicle_mask(r, s["west"])).mean(0)
     rows, cols = np.nonzero(beams)
     assert rows.size > 10 and abs(cols.mean() - vehicle[1]) < 8, (rows.size, cols.mean(), vehicle)

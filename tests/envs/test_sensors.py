@@ -135,6 +135,65 @@ def test_vertical_beams_match_mj_ray(casters):
     assert hits >= 30, hits   # the floor below, and obstacles above in scenario 3, were hit
 
 
+def test_slanted_beams_match_mj_ray(casters):
+    """With vertical_beams and slant_beams=6 at 35 degrees: the fan and the vertical beams unchanged, then
+    an upper and a lower ring of 6 beams each, at bearings 0, 60, .. 300 degrees from body x, reading
+    mj_ray's distance along directions built here from the angles."""
+    env, fan_only = casters[3]
+    params = envs.make_params(3, vertical_beams=True, slant_beams=6, slant_elevation_deg=35.0)
+    assert params.observation_size == 26 + 2 + 12
+    cast = jax.jit(lambda d, p, r, u: sensors.cast(params, env.mjx_model, d, env.body_id, p, r, u))
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    rng = np.random.default_rng(11)
+    lo, hi = env.params.bounds
+    e = np.deg2rad(35.0)
+    rings = [(np.cos(e) * np.cos(b), np.cos(e) * np.sin(b), sign * np.sin(e))
+             for sign in (1.0, -1.0) for b in np.deg2rad(np.arange(0, 360, 60))]
+    hits = 0
+    for _ in range(30):
+        pos = np.array([rng.uniform(-4.6, 4.6), rng.uniform(-4.6, 4.6), rng.uniform(lo, hi)])
+        quat = rng.normal(size=4)
+        quat[1:3] *= 0.3
+        quat /= np.linalg.norm(quat)
+        d.qpos[:3], d.qpos[3:7] = pos, quat
+        mujoco.mj_forward(m, d)
+        rot = d.xmat[env.body_id].reshape(3, 3)
+        args = (mjx.put_data(m, d), jnp.asarray(pos, jnp.float32), jnp.asarray(rot, jnp.float32),
+                jnp.asarray(pos[2] < 0.0))
+        ours, fan = np.asarray(cast(*args)), np.asarray(fan_only(*args))
+        assert ours.shape == (sensors.NUM_BEAMS + 2 + 12,)
+        np.testing.assert_allclose(ours[:sensors.NUM_BEAMS], fan, atol=1e-5)   # another program: float rounding
+        max_range = 20.0 if pos[2] < 0 else 10.0
+        for k, local in enumerate([(0, 0, 1.0), (0, 0, -1.0)] + rings):
+            hit = mujoco.mj_ray(m, d, pos, rot @ np.array(local), np.array(sensors.RAY_GEOMGROUP, np.uint8), 1,
+                                env.body_id, np.zeros(1, np.int32))
+            hits += 0 <= hit < max_range
+            assert ours[sensors.NUM_BEAMS + k] == pytest.approx(max_range if hit < 0 else min(hit, max_range),
+                                                                abs=1e-3)
+    assert hits >= 200, hits   # walls, floor and obstacles: most slanted beams hit something in range
+
+
+def test_slanted_beams_in_the_observation():
+    """The empty tank's centre, 0.5 m up (1.8 m above the floor top, -1.3 m), upright, yaw 0.4 rad: the
+    upper ring's 4 beams, 30 degrees above the body plane at yaw + k * 90 degrees, meet the walls
+    (x, y = +-4.9) at 4.9 / (cos 30 cos 0.4) = 6.14 m; the lower ring meets the floor at 1.8 / sin 30 =
+    3.6 m, before the walls. Scaled by the LIDAR's 10 m they follow the fan's 26 floats."""
+    env = envs.make(1, slant_beams=4, wind_sigma=0.0)
+    assert env.observation_size == 34
+    s = jax.jit(env.reset_to)(jax.random.PRNGKey(0), jnp.array([0.0, 0.0, 0.5]), 0.4, jnp.array([0.0, 0.0, 3.0]))
+    wall = 4.9 / (np.cos(np.deg2rad(30)) * np.cos(0.4))
+    np.testing.assert_allclose(np.asarray(s.obs[26:]), [wall / 10] * 4 + [0.36] * 4, atol=1e-3)
+    assert s.info["ranges"].shape == (20,)
+    np.testing.assert_allclose(np.asarray(s.info["vertical_ranges"]), [wall] * 4 + [3.6] * 4, atol=1e-2)
+
+
+def test_slant_beams_are_validated():
+    for bad in ({"slant_beams": -1}, {"slant_beams": 2.5}, {"slant_beams": True}, {"slant_elevation_deg": 0.0},
+                {"slant_elevation_deg": 90.0}):
+        with pytest.raises(ValueError, match="slant_"):
+            envs.make_params(2, **bad)
+
+
 def test_vertical_beams_extend_the_observation_not_the_collision_check(env_fns):
     """In the empty tank (floor top -1.3 m, no ceiling): the observation gains the up and down ranges /
     the active maximum, through the water surface as the fans; the fan and the rest keep their places;

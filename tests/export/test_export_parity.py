@@ -213,3 +213,23 @@ def test_a_vertical_beam_policy_exports_and_the_example_builds_its_observation(e
         np.testing.assert_allclose(obs, np.asarray(s.obs), atol=2e-6, rtol=0)
     with pytest.raises(ValueError, match="20 ranges given; this policy takes 22"):
         build(manifest, ranges[:20], position[2] < 0, np.zeros(3), position, yaw, goal)
+
+
+def test_slanted_beams_in_the_manifest_and_the_example():
+    """env.slant_beams=3 at 40 degrees after the vertical beams: policy.json places the two rings at
+    floats 28-33 with their geometry, and the example's observation builder takes 20 + 2 + 6 ranges
+    and puts the extra 8 after the goal floats, scaled by the active sensor's maximum."""
+    from docrl_jax.export.manifest import observation_spec
+    config = load_config("td3_lstm_generalist", ["env.slant_beams=3", "env.slant_elevation_deg=40"], backend="cpu")
+    spec = observation_spec(config)
+    slanted = spec["layout"][-1]
+    assert spec["size"] == 34 and slanted["name"] == "slanted_ranges" and slanted["index"] == [28, 33]
+    assert "rings of 3 beams" in slanted["value"] and "40 degrees" in slanted["value"]
+    assert spec["layout"][-2]["index"] == [26, 27]
+    build = _example_module().build_observation
+    ranges = np.arange(1.0, 29.0) / 10.0
+    obs = build({"observation": spec}, ranges, False, np.zeros(3), (0.0, 0.0, 1.0), 0.0, (1.0, 0.0, 1.0))
+    assert obs.shape == (34,)
+    np.testing.assert_allclose(obs[26:], ranges[20:] / 10.0, rtol=1e-6)
+    with pytest.raises(ValueError, match="22 ranges given; this policy takes 28"):
+        build({"observation": spec}, ranges[:22], False, np.zeros(3), (0.0, 0.0, 1.0), 0.0, (1.0, 0.0, 1.0))
