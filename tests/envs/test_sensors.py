@@ -22,32 +22,40 @@ def casters():
     return out
 
 
-@pytest.mark.parametrize("scenario", [1, 2, 3])
-def test_rays_match_mj_ray(casters, scenario):
-    env, cast = casters[scenario]
-    m = env.mj_model
-    d = mujoco.MjData(m)
-    rng = np.random.default_rng(scenario)
+def _random_poses(env, seed: int, n: int):
+    """n random poses in the tank, mostly upright (up to ~35 degrees of tilt): yields the MuJoCo data
+    (forwarded), the position, the body rotation and the arguments `sensors.cast` takes after the model."""
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    rng = np.random.default_rng(seed)
     lo, hi = env.params.bounds
-    worst = 0.0
-    for _ in range(25):
+    for _ in range(n):
         pos = np.array([rng.uniform(-4.6, 4.6), rng.uniform(-4.6, 4.6), rng.uniform(lo, hi)])
         quat = rng.normal(size=4)
-        quat[1:3] *= 0.3  # mostly upright, up to ~35 degrees of tilt
+        quat[1:3] *= 0.3
         quat /= np.linalg.norm(quat)
         d.qpos[:3], d.qpos[3:7] = pos, quat
         mujoco.mj_forward(m, d)
         rot = d.xmat[env.body_id].reshape(3, 3)
-        underwater = pos[2] < 0.0
-        ours = np.asarray(cast(mjx.put_data(m, d), jnp.asarray(pos, jnp.float32), jnp.asarray(rot, jnp.float32),
-                               jnp.asarray(underwater)))
-        fov, max_range = (90.0, 20.0) if underwater else (270.0, 10.0)
-        ref = []
-        for a in sensors.beam_angles(fov):
-            vec = rot @ np.array([np.cos(a), np.sin(a), 0.0])
-            dist = mujoco.mj_ray(m, d, pos, vec, np.array(sensors.RAY_GEOMGROUP, np.uint8), 1, env.body_id,
-                                 np.zeros(1, np.int32))
-            ref.append(max_range if dist < 0 else min(dist, max_range))
+        yield d, pos, rot, (mjx.put_data(m, d), jnp.asarray(pos, jnp.float32), jnp.asarray(rot, jnp.float32),
+                            jnp.asarray(pos[2] < 0.0))
+
+
+def _mj_range(env, d, pos, direction, max_range: float) -> float:
+    """mujoco.mj_ray's reading along a world direction, as a beam reports it (no hit: the maximum)."""
+    dist = mujoco.mj_ray(env.mj_model, d, pos, direction, np.array(sensors.RAY_GEOMGROUP, np.uint8), 1,
+                         env.body_id, np.zeros(1, np.int32))
+    return max_range if dist < 0 else min(dist, max_range)
+
+
+@pytest.mark.parametrize("scenario", [1, 2, 3])
+def test_rays_match_mj_ray(casters, scenario):
+    env, cast = casters[scenario]
+    worst = 0.0
+    for d, pos, rot, args in _random_poses(env, scenario, 25):
+        ours = np.asarray(cast(*args))
+        fov, max_range = (90.0, 20.0) if pos[2] < 0.0 else (270.0, 10.0)
+        ref = [_mj_range(env, d, pos, rot @ np.array([np.cos(a), np.sin(a), 0.0]), max_range)
+               for a in sensors.beam_angles(fov)]
         worst = max(worst, float(np.max(np.abs(ours - np.array(ref)))))
     assert worst < 1e-3, worst
 
@@ -108,30 +116,16 @@ def test_vertical_beams_match_mj_ray(casters):
     env, fan_only = casters[3]
     params = envs.make_params(3, vertical_beams=True)
     cast = jax.jit(lambda d, p, r, u: sensors.cast(params, env.mjx_model, d, env.body_id, p, r, u))
-    m, d = env.mj_model, mujoco.MjData(env.mj_model)
-    rng = np.random.default_rng(7)
-    lo, hi = env.params.bounds
     hits = 0
-    for _ in range(30):
-        pos = np.array([rng.uniform(-4.6, 4.6), rng.uniform(-4.6, 4.6), rng.uniform(lo, hi)])
-        quat = rng.normal(size=4)
-        quat[1:3] *= 0.3
-        quat /= np.linalg.norm(quat)
-        d.qpos[:3], d.qpos[3:7] = pos, quat
-        mujoco.mj_forward(m, d)
-        rot = d.xmat[env.body_id].reshape(3, 3)
-        args = (mjx.put_data(m, d), jnp.asarray(pos, jnp.float32), jnp.asarray(rot, jnp.float32),
-                jnp.asarray(pos[2] < 0.0))
+    for d, pos, rot, args in _random_poses(env, 7, 30):
         ours, fan = np.asarray(cast(*args)), np.asarray(fan_only(*args))
         assert ours.shape == (sensors.NUM_BEAMS + 2,)
         np.testing.assert_array_equal(ours[:sensors.NUM_BEAMS], fan)
         max_range = 20.0 if pos[2] < 0 else 10.0
         for k, sign in enumerate((1.0, -1.0)):
-            hit = mujoco.mj_ray(m, d, pos, sign * rot[:, 2], np.array(sensors.RAY_GEOMGROUP, np.uint8), 1,
-                                env.body_id, np.zeros(1, np.int32))
-            hits += 0 <= hit < max_range
-            assert ours[sensors.NUM_BEAMS + k] == pytest.approx(max_range if hit < 0 else min(hit, max_range),
-                                                                abs=1e-3)
+            expected = _mj_range(env, d, pos, sign * rot[:, 2], max_range)
+            hits += expected < max_range
+            assert ours[sensors.NUM_BEAMS + k] == pytest.approx(expected, abs=1e-3)
     assert hits >= 30, hits   # the floor below, and obstacles above in scenario 3, were hit
 
 
@@ -143,33 +137,19 @@ def test_slanted_beams_match_mj_ray(casters):
     params = envs.make_params(3, vertical_beams=True, slant_beams=6, slant_elevation_deg=35.0)
     assert params.observation_size == 26 + 2 + 12
     cast = jax.jit(lambda d, p, r, u: sensors.cast(params, env.mjx_model, d, env.body_id, p, r, u))
-    m, d = env.mj_model, mujoco.MjData(env.mj_model)
-    rng = np.random.default_rng(11)
-    lo, hi = env.params.bounds
     e = np.deg2rad(35.0)
     rings = [(np.cos(e) * np.cos(b), np.cos(e) * np.sin(b), sign * np.sin(e))
              for sign in (1.0, -1.0) for b in np.deg2rad(np.arange(0, 360, 60))]
     hits = 0
-    for _ in range(30):
-        pos = np.array([rng.uniform(-4.6, 4.6), rng.uniform(-4.6, 4.6), rng.uniform(lo, hi)])
-        quat = rng.normal(size=4)
-        quat[1:3] *= 0.3
-        quat /= np.linalg.norm(quat)
-        d.qpos[:3], d.qpos[3:7] = pos, quat
-        mujoco.mj_forward(m, d)
-        rot = d.xmat[env.body_id].reshape(3, 3)
-        args = (mjx.put_data(m, d), jnp.asarray(pos, jnp.float32), jnp.asarray(rot, jnp.float32),
-                jnp.asarray(pos[2] < 0.0))
+    for d, pos, rot, args in _random_poses(env, 11, 30):
         ours, fan = np.asarray(cast(*args)), np.asarray(fan_only(*args))
         assert ours.shape == (sensors.NUM_BEAMS + 2 + 12,)
         np.testing.assert_allclose(ours[:sensors.NUM_BEAMS], fan, atol=1e-5)   # another program: float rounding
         max_range = 20.0 if pos[2] < 0 else 10.0
         for k, local in enumerate([(0, 0, 1.0), (0, 0, -1.0)] + rings):
-            hit = mujoco.mj_ray(m, d, pos, rot @ np.array(local), np.array(sensors.RAY_GEOMGROUP, np.uint8), 1,
-                                env.body_id, np.zeros(1, np.int32))
-            hits += 0 <= hit < max_range
-            assert ours[sensors.NUM_BEAMS + k] == pytest.approx(max_range if hit < 0 else min(hit, max_range),
-                                                                abs=1e-3)
+            expected = _mj_range(env, d, pos, rot @ np.array(local), max_range)
+            hits += expected < max_range
+            assert ours[sensors.NUM_BEAMS + k] == pytest.approx(expected, abs=1e-3)
     assert hits >= 200, hits   # walls, floor and obstacles: most slanted beams hit something in range
 
 
