@@ -339,7 +339,9 @@ class HUAUVEnv:
     @staticmethod
     def _info(ranges, position, velocity, rot, goal, underwater, arrived, terminated, truncated, collision,
               out_of_bounds, step, goals_reached, nonfinite_action):
-        return {   # "ranges": the fan's; "vertical_ranges": up and down with vertical_beams, else empty (0,)
+        # "ranges": the fan's; "vertical_ranges": every beam after it (`sensors.extra_directions`: up and
+        # down with vertical_beams, then the slant_beams rings), empty (0,) without them
+        return {
             "ranges": ranges[:sensors.NUM_BEAMS], "vertical_ranges": ranges[sensors.NUM_BEAMS:],
             "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot),
             "goal": goal, "distance": jnp.linalg.norm(goal - position), "underwater": underwater,

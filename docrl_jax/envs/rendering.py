@@ -7,9 +7,9 @@ the whole tank from above one corner, with the walls nearest to it see-through. 
 the water as a translucent blue-green volume with its surface line drawn on the walls, a blue-green
 tint and fog over a view whose camera is under water, the goal (a translucent sphere of the arrival
 radius), the active range fan (LIDAR in air, sonar under water; `sensors.beam_directions`) and the
-vertical beams (`vertical_beams`) with their hits, the path so far, rotor discs that show the
-vehicle's heading (red at the front), and a text overlay (step, medium, distance to the goal,
-outcome; Pillow's ImageDraw).
+vertical and slanted beams (`vertical_beams`, `slant_beams`) with their hits, the path so far, rotor
+discs that show the vehicle's heading (red at the front), and a text overlay (step, medium, distance
+to the goal, outcome; Pillow's ImageDraw).
 
 Render-only: the decorations are extra geoms put into the renderer's scene after `update_scene`
 (`mjv_initGeom`, `mjv_connector`), and the lights, fog and buffer size are set on a copy of the
@@ -75,7 +75,8 @@ class Track:
     qpos: np.ndarray                      # (T, 7) position and quaternion (w, x, y, z)
     goal: np.ndarray                      # (T, 3)
     ranges: np.ndarray | None = None      # (T, 20) the ranges read (noise included); None: no fan
-    vertical_ranges: np.ndarray | None = None  # (T, 2) up and down (env.vertical_beams); None or (T, 0): none
+    vertical_ranges: np.ndarray | None = None  # (T, k) the beams after the fan (sensors.extra_directions);
+    #                                            None or (T, 0): none
     underwater: np.ndarray | None = None  # (T,) bool: the sensor used (sonar when true)
     step: np.ndarray | None = None        # (T,) control steps since the start
     distance: np.ndarray | None = None    # (T,) metres to the goal
@@ -181,10 +182,10 @@ class Renderer:
     def frame(self, qpos, goal, ranges=None, underwater: bool | None = None, lines: Sequence[str] = (),
               trail=None, cam_yaw: float | None = None, vehicle: bool = True, vertical_ranges=None) -> np.ndarray:
         """One frame (H, W, 3) uint8 of the vehicle at `qpos` heading for `goal`. `ranges`: the active
-        fan's ranges and `vertical_ranges` the up and down beams' (both drawn when the renderer's `fan` is
-        on); `underwater`: which fan (default: by the vehicle's depth); `trail`: past positions (k, 3);
-        `cam_yaw`: the follow camera's heading in radians (default the vehicle's); `vehicle=False` leaves
-        the vehicle out (tests find its pixels)."""
+        fan's ranges and `vertical_ranges` those of the beams after it, up and down, then slanted (both
+        drawn when the renderer's `fan` is on); `underwater`: which fan (default: by the vehicle's depth);
+        `trail`: past positions (k, 3); `cam_yaw`: the follow camera's heading in radians (default the
+        vehicle's); `vehicle=False` leaves the vehicle out (tests find its pixels)."""
         qpos = np.asarray(qpos, np.float64)
         self.data.qpos[:] = qpos
         mujoco.mj_kinematics(self.model, self.data)

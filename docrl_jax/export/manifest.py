@@ -17,6 +17,7 @@ import numpy as np
 from docrl_jax import resources
 from docrl_jax.config import Config, env_kwargs
 from docrl_jax.envs import ACTION_SIZE, DIST_SCALE, OBS_SIZE, make_params
+from docrl_jax.envs.params import VERTICAL_BEAMS
 from docrl_jax.envs.sensors import NUM_BEAMS, beam_angles
 
 FORMAT = "docrl_jax policy export, version 1"
@@ -43,11 +44,11 @@ def _beams(fov_deg: float, max_range: float) -> dict[str, Any]:
 
 def observation_spec(config: Config) -> dict[str, Any]:
     p = make_params(config.env.scenario, **env_kwargs(config))
-    vertical = [{"index": [OBS_SIZE, OBS_SIZE + 1], "name": "vertical_ranges",
+    vertical = [{"index": [OBS_SIZE, OBS_SIZE + VERTICAL_BEAMS - 1], "name": "vertical_ranges",
                  "value": "range / max range of the active sensor, in [0, 1], of two beams from the vehicle centre "
                           "along body +z (up), then body -z (down); like the fans they see walls, floor and "
                           "obstacles, not the water surface"}] if p.vertical_beams else []
-    first = OBS_SIZE + 2 * p.vertical_beams
+    first = OBS_SIZE + VERTICAL_BEAMS * p.vertical_beams
     slanted = [{"index": [first, p.observation_size - 1], "name": "slanted_ranges",
                 "value": f"range / max range of the active sensor, in [0, 1], of two rings of {p.slant_beams} beams "
                          f"from the vehicle centre, {p.slant_elevation_deg:g} degrees above (the first ring), then "
