@@ -60,11 +60,15 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     # a randomised mass only with the integral that takes it up (docs/ROBUSTNESS.md)
     assert env["dr_mass_scale"] == (0.8, 1.2) and env["vel_i_rate"] == 0.3
     # the beams up and down, which the actor and critics see as two more observation floats
-    assert env["vertical_beams"] and observation_size(g) == 28 and observation_size(load_config("td3_lstm")) == 26
+    assert env["vertical_beams"] and observation_size(load_config("td3_lstm")) == 26
     # a collision margin in training only: the pairs, evaluated without it, get their own env
     assert env["collision_margin"] == 0.2 and env["goal_clearance"] == 0.8 and not g.train.eval_alongside
     # a collision costs what arriving earns (the paper: -10); the evaluations keep the run's reward
     assert env["reward_collide"] == -100.0 and cfg.evaluation_env_kwargs(g)["reward_collide"] == -100.0
+    # two rings of 8 slanted beams (16 more floats), and the progress term that keeps every seed learning
+    # with them (without it, 1 of 6 seeds waited out the clock)
+    assert env["slant_beams"] == 8 and env["slant_elevation_deg"] == 30 and observation_size(g) == 44
+    assert env["progress_reward_scale"] == 2.0 and cfg.evaluation_env_kwargs(g)["progress_reward_scale"] == 2.0
     for key, value in env.items():
         if key.startswith("dr_"):
             assert value[0] <= value[1], key

@@ -48,7 +48,8 @@ class EnvParams:
     reward_collide: float = documented(-10.0, "Reward on collision or leaving the vertical bounds (paper r_collide).")
     reward_timeout: float = documented(-10.0, "Reward when the step limit is reached (paper: r_collide at ep = 500).")
     progress_reward_scale: float = documented(0.0, "Dense shaping: scale * (previous distance - distance) per step, "
-                                                   "for ablations. 0 = the paper's binary reward.")
+                                                   "so moving towards the goal pays before the first arrival "
+                                                   "does. 0 = the paper's binary reward.")
     terminate_on_arrival: bool = documented(False,
         "End the episode on arrival (evaluation). False = sample a new goal and "
         "go on from where the vehicle is (training, as in the paper).")

@@ -197,7 +197,7 @@ def test_a_vertical_beam_policy_exports_and_the_example_builds_its_observation(e
     """A policy trained with env.vertical_beams takes 28 floats: its export is checked on 28-float
     observations, policy.json names floats 26-27, and examples/deploy_node.py, given the fan's ranges then
     up and down, builds the env's observation (the paper's 20 ranges alone are refused)."""
-    config = load_config("td3_lstm_generalist", backend="cpu")
+    config = load_config("td3_lstm_generalist", ["env.slant_beams=0"], backend="cpu")
     params = make_agent(config).init(jax.random.PRNGKey(5)).actor
     manifest = export_actor(config, params, tmp_path / "vertical", source={"fresh": "td3_lstm_generalist"},
                             formats=["numpy"])
