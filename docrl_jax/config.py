@@ -576,9 +576,13 @@ def pair_scenario(c: Config) -> int:
     return c.env.scenario or c.train.eval_pair_scenario
 
 
+# The env fields that shape training episodes only (they end them earlier than a test would).
+TRAINING_ONLY_ENV = ("collision_margin", "hull_margin")
+
+
 def evaluation_env_kwargs(c: Config) -> dict[str, Any]:
-    """`env_kwargs` without the training-only `env.collision_margin`: what every evaluation episode runs with."""
-    return {k: v for k, v in env_kwargs(c).items() if k != "collision_margin"}
+    """`env_kwargs` without the training-only fields (`TRAINING_ONLY_ENV`): what every evaluation episode runs with."""
+    return {k: v for k, v in env_kwargs(c).items() if k not in TRAINING_ONLY_ENV}
 
 
 def nominal_env_kwargs(c: Config) -> dict[str, Any]:
@@ -598,8 +602,9 @@ def alongside_blocker(c: Config) -> str | None:
     and one policy must drive them."""
     if c.train.eval_trained_actor and c.agent.policy_average_tau < 1.0:
         return "train.eval_trained_actor evaluates a second policy on the same episodes"
-    if env_kwargs(c).get("collision_margin", 0.0) > 0.0:
-        return "env.collision_margin ends the training env's episodes earlier than an evaluation's"
+    for name in TRAINING_ONLY_ENV:
+        if env_kwargs(c).get(name, 0.0) > 0.0:
+            return f"env.{name} ends the training env's episodes earlier than an evaluation's"
     if pairs_own_env(c):
         return (f"the paper pairs run in scenario {pair_scenario(c)} with the nominal plant, not in the training "
                 f"env (env.scenario={c.env.scenario}" + (", dr_* ranges)" if nominal_env_kwargs(c) != env_kwargs(c)

@@ -109,6 +109,9 @@ def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_r
     margin = load_config("td3_lstm", ["env.collision_margin=0.2", "env.goal_clearance=0.8"])
     assert cfg.pairs_own_env(margin) and "collision_margin" not in cfg.nominal_env_kwargs(margin)
     assert cfg.evaluation_env_kwargs(margin) == {k: v for k, v in cfg.env_kwargs(margin).items() if k != "collision_margin"}
+    hull = load_config("td3_lstm", ["env.hull_margin=0.2", "train.eval_alongside=auto"])
+    assert "hull_margin" in cfg.env_kwargs(hull) and "hull_margin" not in cfg.evaluation_env_kwargs(hull)
+    assert cfg.alongside_blocker(hull) == "env.hull_margin ends the training env's episodes earlier than an evaluation's"
     with pytest.raises(ConfigError, match="eval_alongside='maybe': must be a bool .* or 'auto'"):
         load_config("td3_lstm", ["train.eval_alongside=maybe"])
 

@@ -15,14 +15,14 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from docrl_jax.envs.params import HULL_SPHERE_PITCH, HULL_SPHERE_RADIUS
+
 SOLID_GROUP = 1  # walls, floor and obstacles (assets/common.xml)
 TANK_HALF_WIDTH = 4.9  # inner wall faces at x, y = +-4.9 (assets/common.xml; orig 1.2)
 
-# Spheres covering the 0.47 x 0.47 x 0.09 m hull box: centres on a 3 x 3 grid in the body x-y plane,
-# radius = distance from a grid point to the farthest corner of its cell (0.119 m), rounded up.
-HULL_SPHERE_CENTRES = np.array([[x, y, 0.0] for x in (-0.157, 0.0, 0.157) for y in (-0.157, 0.0, 0.157)],
-                               dtype=np.float32)
-HULL_SPHERE_RADIUS = 0.12
+# Spheres covering the hull box (params.HULL_SPHERE_*): centres on a 3 x 3 grid in the body x-y plane.
+_PITCH = (-HULL_SPHERE_PITCH, 0.0, HULL_SPHERE_PITCH)
+HULL_SPHERE_CENTRES = np.array([[x, y, 0.0] for x in _PITCH for y in _PITCH], dtype=np.float32)
 
 
 class Solids(NamedTuple):

@@ -276,10 +276,12 @@ class HUAUVEnv:
         true_ranges, ranges = self._sense(data, sim.layout, plant, k_noise, position, rot, underwater)
 
         # 5. Events and reward (collision on the noise-free geometry).
-        _, solids, lo = self._tank(sim.layout)
+        obstacles, solids, lo = self._tank(sim.layout)
         hi = p.bounds[1]
         collision = (jnp.min(true_ranges) < p.collision_distance + p.collision_margin) | (
             geometry.hull_clearance(solids, position, rot) < 0.0)
+        if p.hull_margin:
+            collision |= geometry.hull_clearance(obstacles, position, rot) < p.hull_margin
         out_of_bounds = (position[2] < lo) | (position[2] > hi)
         terminated = collision | out_of_bounds | ~finite_state
         dist = jnp.linalg.norm(sim.goal - position)

@@ -22,6 +22,12 @@ Vec3 = tuple[float, float, float]
 # (`slant_beams` adds two rings of its own count).
 PAPER_OBS_SIZE = 26
 VERTICAL_BEAMS = 2
+# The hull (a 0.47 x 0.47 x 0.09 m box) as the collision check sees it: spheres of HULL_SPHERE_RADIUS on a
+# 3 x 3 grid of pitch HULL_SPHERE_PITCH in the body x-y plane (each radius reaches its grid cell's farthest
+# corner, 0.119 m, rounded up). No point of the cover is farther than HULL_REACH from the body centre.
+HULL_SPHERE_PITCH = 0.157
+HULL_SPHERE_RADIUS = 0.12
+HULL_REACH = math.sqrt(2.0) * HULL_SPHERE_PITCH + HULL_SPHERE_RADIUS
 
 
 @dataclass(frozen=True)
@@ -44,6 +50,11 @@ class EnvParams:
         "Ours, training only: the training episodes end as collisions already when the smallest range is below "
         "collision_distance + this, so a policy learns to keep a margin from what its fan sees. Every "
         "evaluation (the trainer's, the evaluator's, the robustness benchmark's) runs without it.")
+    hull_margin: float = documented(0.0,
+        "Ours, training only: the training episodes also end as collisions when the hull comes within this "
+        "distance (m) of an obstacle in any direction (the walls and the floor excepted: starts and goals may "
+        "lie nearer to them), where the fan's range check sees only the body plane. 0 = off; every evaluation "
+        "runs without it.")
     reward_arrive: float = documented(100.0, "Reward on arrival (paper r_arrive).")
     reward_collide: float = documented(-10.0, "Reward on collision or leaving the vertical bounds (paper r_collide).")
     reward_timeout: float = documented(-10.0, "Reward when the step limit is reached (paper: r_collide at ep = 500).")
@@ -314,12 +325,15 @@ def validate(p: EnvParams) -> EnvParams:
     for name in positive:
         if getattr(p, name) <= 0:
             _fail(name, getattr(p, name), "must be > 0")
-    nonneg = ["collision_distance", "collision_margin", "progress_reward_scale", "goal_clearance", "wall_margin",
+    nonneg = ["collision_distance", "collision_margin", "hull_margin", "progress_reward_scale", "goal_clearance", "wall_margin",
               "lidar_min_range", "sensor_noise_std", "vel_i_gain", "vel_i_limit", "vel_i_band", "vel_i_rate",
               "rotor_moment_constant", "hull_volume", "wind_theta", "wind_sigma", "min_goal_distance"]
     if p.goal_clearance <= p.collision_distance + p.collision_margin:
         _fail("goal_clearance", p.goal_clearance, f"must exceed collision_distance + collision_margin = "
               f"{p.collision_distance + p.collision_margin:g} m, or a start or goal could be a collision")
+    if p.hull_margin and p.goal_clearance <= HULL_REACH + p.hull_margin:
+        _fail("goal_clearance", p.goal_clearance, f"must exceed the hull's reach {HULL_REACH:.3f} m + hull_margin = "
+              f"{HULL_REACH + p.hull_margin:.3f} m, or a start or goal could be a collision")
     if p.max_goal_distance <= p.min_goal_distance:
         _fail("max_goal_distance", p.max_goal_distance, f"must exceed min_goal_distance={p.min_goal_distance}")
     for name in nonneg:

@@ -11,7 +11,7 @@ nominal plant) are run too, from the evaluator's trial starts (`train.eval_pair_
 bounds are reported too (the rest of the failures are time-outs): a direction that stalls below 90 %
 says why in metrics.csv. The full protocol of the paper (100 trials, times in air/water, 0.01 m range
 noise) is the evaluator's job, not this module's; these episodes use the training env's settings
-(without `env.collision_margin`, which is for training only).
+(without `env.collision_margin` and `env.hull_margin`, which are for training only).
 
 The same episodes run in one of two ways:
 

@@ -31,6 +31,8 @@ def test_make_rejects_unknown_names_listing_valid_ones():
     ({"added_mass": (1.0, 1.0)}, "3 finite numbers"),
     ({"collision_margin": -0.1}, "collision_margin.*>= 0"),
     ({"collision_margin": 0.5}, r"goal_clearance=1.0: must exceed collision_distance \+ collision_margin = 1 m"),
+    ({"hull_margin": -0.1}, "hull_margin.*>= 0"),
+    ({"hull_margin": 0.7}, r"goal_clearance=1.0: must exceed the hull's reach 0.342 m \+ hull_margin = 1.042 m"),
 ])
 def test_make_rejects_invalid_values(kwargs, fragment):
     kwargs = dict(kwargs)

@@ -156,6 +156,22 @@ def test_hull_touching_a_thin_obstacle_is_caught_without_ranges(env_fns):
     assert 2 - 0.6 - 0.235 - 0.06 < y < 2 - 0.6 - 0.235 + 0.06   # the hull's front edge at the surface
 
 
+def test_hull_margin_ends_the_episode_short_of_obstacles_not_of_walls(env_fns):
+    # The approach above with env.hull_margin 0.2: the episode ends with the hull's front edge ~0.2 m
+    # short of the riser's surface; flown at a wall, only the touch ends it (starts and goals may lie
+    # nearer the walls and the floor than any margin).
+    kw = dict(scenario=2, wind=False, collision_distance=0.0, hull_margin=0.2)
+    _, _, rew, done, info = _run(env_fns, (2.0, -0.2, 2.0), np.pi / 2, (1.0, 0.0, 0.0), 60, **kw)
+    i = int(np.argmax(np.asarray(done)))
+    assert np.asarray(done)[i] and bool(info["collision"][i]) and float(rew[i]) == -10.0
+    y = float(info["position"][i][1])
+    assert 2 - 0.6 - 0.235 - 0.2 - 0.06 < y < 2 - 0.6 - 0.235 - 0.2 + 0.06
+    _, _, rew, done, info = _run(env_fns, (4.0, 0.0, 2.0), 0.0, (1.0, 0.0, 0.0), 60, **kw)
+    i = int(np.argmax(np.asarray(done)))
+    assert np.asarray(done)[i] and bool(info["collision"][i])
+    assert 4.9 - 0.235 - 0.06 < float(info["position"][i][0]) < 4.9 - 0.235 + 0.06
+
+
 def test_floor_collision_and_leaving_the_bounds_terminate(env_fns):
     # Bounds moved below the floor: the hull hits the floor (top -1.3) first.
     _, _, rew, done, info = _run(env_fns, (0.0, 0.0, -0.8), 0.0, (-1.0, -1.0, 0.0), 40, **EVAL_LIKE)
