@@ -21,6 +21,7 @@ import sys
 import time
 
 import jax
+import yaml
 
 import docrl_jax.envs as envs
 
@@ -85,7 +86,10 @@ def main(argv=None) -> int:
         key, sep, value = item.partition("=")
         if not sep:
             ap.error(f"--env {item!r}: expected KEY=VALUE")
-        parts = [float(v) if any(c in v for c in ".e") else int(v) for v in value.split(",")]
+        try:   # each part a YAML scalar, as a config's --set reads it: 0.1, 8, true
+            parts = [yaml.safe_load(v) for v in value.split(",")]
+        except yaml.YAMLError as e:
+            ap.error(f"--env {item!r}: {e}")
         overrides[key] = tuple(parts) if len(parts) > 1 else parts[0]
     meta = run_meta()
     print(json.dumps(meta), flush=True)
