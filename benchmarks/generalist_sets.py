@@ -1,7 +1,7 @@
 """The `--set` arguments that train any packaged config "the generalist's way": the env section of
 `configs/td3_lstm_generalist.yaml` (procedural tanks, random starts, goals and headings, the
 domain-randomisation envelope, the controller's integral, the vertical and slanted beams, the training
-rewards and collision margin) and where its paper-pair evaluation runs.
+rewards, the collision and hull margins) and where its paper-pair evaluation runs.
 The envelope stays written once, in that config.
 
     python3 -m docrl_jax.train --config sac_lstm $(python3 benchmarks/generalist_sets.py) --set train.num_seeds=3

@@ -63,6 +63,8 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     assert env["vertical_beams"] and observation_size(load_config("td3_lstm")) == 26
     # a collision margin in training only: the pairs, evaluated without it, get their own env
     assert env["collision_margin"] == 0.2 and env["goal_clearance"] == 0.8 and not g.train.eval_alongside
+    # and a margin around the hull, for what the fan does not see; no evaluation runs with either
+    assert env["hull_margin"] == 0.1 and {"collision_margin", "hull_margin"}.isdisjoint(cfg.evaluation_env_kwargs(g))
     # a collision costs what arriving earns (the paper: -10); the evaluations keep the run's reward
     assert env["reward_collide"] == -100.0 and cfg.evaluation_env_kwargs(g)["reward_collide"] == -100.0
     # two rings of 8 slanted beams (16 more floats), and the progress term that keeps every seed learning
@@ -92,7 +94,7 @@ def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_r
     assert any(n.startswith("train.eval_alongside auto -> false (env.collision_margin ends the training env's")
                for n in notes)
     notes = []
-    del generalist["env"]["collision_margin"]
+    del generalist["env"]["collision_margin"], generalist["env"]["hull_margin"]
     assert not config_from_dict(generalist, backend="gpu", notes=notes).train.eval_alongside
     assert any(n.startswith("train.eval_alongside auto -> false (the paper pairs run in scenario 2") for n in notes)
     for sets in (["train.eval_alongside=true", "env.scenario=0"], ["train.eval_alongside=true", "env.dr_wind_scale=[1.0, 2.0]"],
