@@ -35,9 +35,18 @@ class Solids(NamedTuple):
     cap_radius: jnp.ndarray   # (nc,)
 
 
-def solids_from_model(model: mujoco.MjModel, include_walls: bool = True, walls_only: bool = False) -> Solids:
-    """Collects the group-1 boxes and capsules; walls and floor are those named wall_* / floor.
-    `walls_only`: the four walls alone (a procedural tank places its floor and obstacles per episode)."""
+SOLID_PARTS = ("obstacles", "boundary", "walls")
+
+
+def solids_from_model(model: mujoco.MjModel, part: str) -> Solids:
+    """Collects the group-1 boxes and capsules of one part of the tank: `obstacles` (neither walls nor
+    floor), `boundary` (the walls and the floor) or `walls` (the four walls alone: a procedural tank
+    places its floor and obstacles per episode). Walls and floor are the geoms named wall_* / floor."""
+    if part not in SOLID_PARTS:
+        raise ValueError(f"part={part!r}: valid parts are {', '.join(SOLID_PARTS)}")
+    keep = {"obstacles": lambda name: not (name.startswith("wall") or name == "floor"),
+            "boundary": lambda name: name.startswith("wall") or name == "floor",
+            "walls": lambda name: name.startswith("wall")}[part]
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     boxes, caps = [], []
@@ -45,9 +54,7 @@ def solids_from_model(model: mujoco.MjModel, include_walls: bool = True, walls_o
         if model.geom_group[g] != SOLID_GROUP or model.geom_bodyid[g] != 0:
             continue
         name = model.geom(g).name
-        if not include_walls and (name.startswith("wall") or name == "floor"):
-            continue
-        if walls_only and not name.startswith("wall"):
+        if not keep(name):
             continue
         pos, rot, size = data.geom_xpos[g].copy(), data.geom_xmat[g].reshape(3, 3).copy(), model.geom_size[g]
         if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:

@@ -106,11 +106,11 @@ class HUAUVEnv:
                                             params.rotor_moment_constant)
         self.procedural = params.scenario == 0
         if self.procedural:  # walls from the MJCF; floor and obstacles from each episode's layout
-            self.walls = geometry.solids_from_model(self.mj_model, walls_only=True)
+            self.walls = geometry.solids_from_model(self.mj_model, "walls")
             self.slot_ids = layouts.slot_ids(self.mj_model)
         else:
-            self.solids = geometry.solids_from_model(self.mj_model)
-            self.obstacles = geometry.solids_from_model(self.mj_model, include_walls=False)
+            self.boundary = geometry.solids_from_model(self.mj_model, "boundary")
+            self.obstacles = geometry.solids_from_model(self.mj_model, "obstacles")
         # Queue lengths of the latencies (static: the largest delay the ranges allow).
         self._action_queue = max(params.dr_action_latency)
         self._obs_queue = max(params.dr_obs_latency)
@@ -130,11 +130,12 @@ class HUAUVEnv:
 
     # ------------------------------------------------------------------ the episode's tank
     def _tank(self, layout):
-        """(obstacles for the start/goal sampler, every solid for the hull check, lower z bound)."""
+        """(obstacles, for the start/goal sampler and the hull check; the walls and the floor, for the
+        hull check; lower z bound)."""
         if not self.procedural:
-            return self.obstacles, self.solids, self.params.bounds[0]
+            return self.obstacles, self.boundary, self.params.bounds[0]
         z_min = layout.z_min if self.params.z_bounds is None else self.params.bounds[0]
-        return layouts.obstacles(layout), layouts.solids(layout, self.walls), z_min
+        return layouts.obstacles(layout), layouts.boundary(layout, self.walls), z_min
 
     def _cast(self, data, layout, position, rot, underwater):
         """Noise-free ranges of the active fan (then the vertical beams, if on), against the episode's tank."""
@@ -276,12 +277,13 @@ class HUAUVEnv:
         true_ranges, ranges = self._sense(data, sim.layout, plant, k_noise, position, rot, underwater)
 
         # 5. Events and reward (collision on the noise-free geometry).
-        obstacles, solids, lo = self._tank(sim.layout)
+        obstacles, boundary, lo = self._tank(sim.layout)
         hi = p.bounds[1]
-        collision = (jnp.min(true_ranges) < p.collision_distance + p.collision_margin) | (
-            geometry.hull_clearance(solids, position, rot) < 0.0)
-        if p.hull_margin:
-            collision |= geometry.hull_clearance(obstacles, position, rot) < p.hull_margin
+        # The hull's clearance to the obstacles serves the contact check and the training-only margin.
+        to_obstacles = geometry.hull_clearance(obstacles, position, rot)
+        touching = jnp.minimum(to_obstacles, geometry.hull_clearance(boundary, position, rot)) < 0.0
+        collision = (jnp.min(true_ranges) < p.collision_distance + p.collision_margin) | touching | (
+            to_obstacles < p.hull_margin)
         out_of_bounds = (position[2] < lo) | (position[2] > hi)
         terminated = collision | out_of_bounds | ~finite_state
         dist = jnp.linalg.norm(sim.goal - position)

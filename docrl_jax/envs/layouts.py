@@ -41,7 +41,7 @@ HELD_OUT_IDS = 10_000
 _ROOT_SEED = 0x6C61796F  # the layouts' own PRNG root ("layo"), apart from every training seed
 SLOT_NAMES = (("floor",) + tuple(f"slot_box_{i}" for i in range(BOX_SLOTS))
               + tuple(f"slot_capsule_{i}" for i in range(CAPSULE_SLOTS)))
-_BOXES = slice(0, 1 + BOX_SLOTS)           # the floor is a box
+_FLOOR = slice(0, 1)                       # the floor is a box
 _OBSTACLE_BOXES = slice(1, 1 + BOX_SLOTS)
 _CAPSULES = slice(1 + BOX_SLOTS, None)
 _PARKED = np.array([0.0, 0.0, -50.0], np.float32)  # an unused slot: below the floor, out of every beam's reach
@@ -186,11 +186,11 @@ def obstacles(layout: Layout) -> geometry.Solids:
     return _solids(layout.pos[b], layout.rot[b], layout.size[b], layout.pos[c], layout.rot[c], layout.size[c])
 
 
-def solids(layout: Layout, walls: geometry.Solids) -> geometry.Solids:
-    """Every solid of the episode's tank (walls, floor, obstacles): what the hull must not touch."""
-    b, c = _BOXES, _CAPSULES
-    return geometry.concat(walls, _solids(layout.pos[b], layout.rot[b], layout.size[b], layout.pos[c],
-                                          layout.rot[c], layout.size[c]))
+def boundary(layout: Layout, walls: geometry.Solids) -> geometry.Solids:
+    """The episode's walls and floor: with `obstacles`, every solid the hull must not touch."""
+    b, none = _FLOOR, slice(0, 0)
+    return geometry.concat(walls, _solids(layout.pos[b], layout.rot[b], layout.size[b], layout.pos[none],
+                                          layout.rot[none], layout.size[none]))
 
 
 def slot_ids(model: mujoco.MjModel) -> np.ndarray:
