@@ -287,13 +287,46 @@ def load_config(name_or_path: str | os.PathLike, overrides: list[str] | dict[str
     Whether the run fits its devices is `docrl_jax.memory.check_memory(config)`, a separate step
     because it needs the devices."""
     path = resolve_config_path(name_or_path)
+    raw = _compose(path, ())
+    if isinstance(overrides, list):
+        overrides = parse_overrides(overrides)
+    return config_from_dict(raw, overrides or {}, source=str(path), backend=backend, notes=notes)
+
+
+def _compose(path: Path, chain: tuple[Path, ...]) -> dict:
+    """The YAML of `path` with its references to other configs resolved, so that a recipe built on
+    another one states only what differs:
+      extends: NAME   -- start from config NAME; this file's keys replace its keys one by one
+      SECTION: NAME   -- a section (env, agent, replay, train) is config NAME's section, whole
+    NAME is a file relative to this one if there is one, else as `--config` takes it (a packaged name)."""
+    path = path.resolve()
+    if path in chain:
+        raise ConfigError("configs extend each other in a cycle: " + " -> ".join(str(p) for p in (*chain, path)))
     try:
         raw = yaml.safe_load(path.read_text()) or {}
     except yaml.YAMLError as e:
         raise ConfigError(f"{path}: not valid YAML ({e})") from None
-    if isinstance(overrides, list):
-        overrides = parse_overrides(overrides)
-    return config_from_dict(raw, overrides or {}, source=str(path), backend=backend, notes=notes)
+    if not isinstance(raw, dict):
+        return raw  # config_from_dict names the problem
+
+    def load(name: Any, key: str) -> dict:
+        if not isinstance(name, str):
+            raise ConfigError(f"{path}: {key!r} must name a config (a packaged name or a path), got {name!r}")
+        beside = path.parent / name
+        return _compose(resolve_config_path(beside if beside.is_file() else name), (*chain, path))
+
+    out = load(raw.pop("extends"), "extends") if "extends" in raw else {}
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in out.items()}
+    for key, value in raw.items():
+        if key in SECTIONS and isinstance(value, str):
+            section = load(value, key).get(key)
+            if not isinstance(section, dict):
+                raise ConfigError(f"{path}: {key}: {value!r} names a config without a {key!r} section")
+            value = dict(section)
+        elif key in SECTIONS and isinstance(value, dict) and isinstance(out.get(key), dict):
+            value = {**out[key], **value}
+        out[key] = value
+    return out
 
 
 # The `auto` sizes that scale with env.num_envs: (section, key, value per env by backend, the note's

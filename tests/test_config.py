@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import pytest
 import yaml
@@ -78,6 +80,41 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     d = load_config("td3_lstm")
     assert g.agent == d.agent and g.replay == d.replay
     assert g.train.updates_per_step == d.train.updates_per_step == 8
+
+
+def test_sac_mlp_generalist_is_sac_mlps_learner_on_the_generalists_env():
+    g, s, t = load_config("sac_mlp_generalist"), load_config("sac_mlp"), load_config("td3_lstm_generalist")
+    assert g.name == "sac_mlp_generalist" and g.agent == s.agent and g.replay == s.replay
+    assert g.env == t.env and observation_size(g) == 44
+    # the in-training evaluation flies the paper's scenario-2 pairs with the nominal plant, paused
+    assert g.train == dataclasses.replace(s.train, eval_pair_scenario=2, eval_alongside=False)
+
+
+def test_a_config_extends_another_and_takes_whole_sections_by_name(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "env_only.yaml").write_text("env: {scenario: 3, num_envs: auto, wind: false}\n")
+    (tmp_path / "mine.yaml").write_text("name: mine\nextends: td3_lstm\nagent: {actor_lr: 1.0e-3}\n"
+                                        "env: sub/env_only.yaml\n")
+    mine, base = load_config(str(tmp_path / "mine.yaml")), load_config("td3_lstm")
+    # keys replace the base's one by one; a section named by a config replaces the base's section whole
+    assert mine.name == "mine" and mine.agent == dataclasses.replace(base.agent, actor_lr=1e-3)
+    assert mine.replay == base.replay and mine.train == base.train
+    # not td3_lstm's env with two keys changed: its goal_clearance and vel_i_rate are gone
+    assert mine.env.scenario == 3 and dict(mine.env.overrides) == {"wind": False}
+    # what is written in the run directory is the composed config, which loads without its bases
+    (tmp_path / "saved.yaml").write_text(to_yaml(mine))
+    assert load_config(str(tmp_path / "saved.yaml")) == mine
+    (tmp_path / "a.yaml").write_text("extends: b.yaml\n")
+    (tmp_path / "b.yaml").write_text("extends: ./a.yaml\n")
+    with pytest.raises(ConfigError, match="cycle.*a.yaml -> .*b.yaml -> .*a.yaml"):
+        load_config(str(tmp_path / "a.yaml"))
+    for text, match in [("extends: td4_lstm\n", r"'td4_lstm' is neither a file nor a packaged config; packaged configs: \["),
+                        ("extends: [td3_lstm]\n", r"'extends' must name a config .* got \['td3_lstm'\]"),
+                        ("agent: sub/env_only.yaml\n", r"'sub/env_only.yaml' names a config without a 'agent' section"),
+                        ("extends: sub/missing.yaml\n", "does not exist")]:
+        (tmp_path / "bad.yaml").write_text(text)
+        with pytest.raises(ConfigError, match=match):
+            load_config(str(tmp_path / "bad.yaml"))
 
 
 def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_refused():
@@ -157,7 +194,7 @@ def test_bare_name_and_path_resolve_to_the_same_config(tmp_path):
     assert load_config(str(copy)) == load_config("td3_lstm")
     with pytest.raises(ConfigError, match="does not exist"):
         load_config(str(tmp_path / "missing.yaml"))
-    with pytest.raises(ConfigError, match=r"packaged configs: \['ddpg_mlp', 'ddpg_mlp_paper', 'sac_lstm', .*'td3_lstm', 'td3_lstm_generalist', 'td3_lstm_paper'\]"):
+    with pytest.raises(ConfigError, match=r"packaged configs: \['ddpg_mlp', 'ddpg_mlp_paper', 'sac_lstm', .*'sac_mlp_generalist', .*'td3_lstm', 'td3_lstm_generalist', 'td3_lstm_paper'\]"):
         load_config("td4_lstm")
 
 
