@@ -1,5 +1,5 @@
 """One report and one figure for four methods of this round: each launch's GPU evaluation (paper pairs
-of scenarios 1-3, random trips, held-out layouts) with its CPU perturbations (scenarios 1-2, 50
+of scenarios 1-3, random trips, held-out layouts) with its CPU perturbations (scenarios 1-2 and 3, 50
 trials; their nominal rows are left out, the GPU's stand for them), relabelled.
     python combine.py   # writes combined/robustness.{md,png}"""
 import json
@@ -16,10 +16,13 @@ rows, meta = [], None
 for name, label in LABELS.items():
     gpu = json.loads((here / "eval" / name / "robustness.json").read_text())
     meta = meta or gpu["meta"]
-    cpu_path = here / "eval" / f"perturbations_{name}" / "robustness.json"
-    cpu = json.loads(cpu_path.read_text())["rows"] if cpu_path.exists() else []
-    if not cpu:
-        print(f"{name}: no CPU perturbations yet", file=sys.stderr)
+    cpu = []
+    for folder in (f"perturbations_{name}", f"perturbations_s3_{name}"):
+        path = here / "eval" / folder / "robustness.json"
+        if path.exists():
+            cpu += json.loads(path.read_text())["rows"]
+        else:
+            print(f"{folder}: not run yet", file=sys.stderr)
     for r in gpu["rows"] + [r for r in cpu if r["perturbation"] != "nominal"]:
         rows.append({**r, "method": label})
 out = here / "combined"
