@@ -313,7 +313,10 @@ def _compose(path: Path, chain: tuple[Path, ...]) -> dict:
         if not isinstance(name, str):
             raise ConfigError(f"{path}: {key!r} must name a config (a packaged name or a path), got {name!r}")
         beside = path.parent / name
-        return _compose(resolve_config_path(beside if beside.is_file() else name), (*chain, path))
+        other = _compose(resolve_config_path(beside if beside.is_file() else name), (*chain, path))
+        if not isinstance(other, dict):
+            raise ConfigError(f"{path}: {key}: {name!r} is not a config (its top level is not a mapping)")
+        return other
 
     out = load(raw.pop("extends"), "extends") if "extends" in raw else {}
     out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in out.items()}

@@ -93,6 +93,7 @@ def test_sac_mlp_generalist_is_sac_mlps_learner_on_the_generalists_env():
 def test_a_config_extends_another_and_takes_whole_sections_by_name(tmp_path):
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "env_only.yaml").write_text("env: {scenario: 3, num_envs: auto, wind: false}\n")
+    (tmp_path / "sub" / "list.yaml").write_text("- td3_lstm\n")
     (tmp_path / "mine.yaml").write_text("name: mine\nextends: td3_lstm\nagent: {actor_lr: 1.0e-3}\n"
                                         "env: sub/env_only.yaml\n")
     mine, base = load_config(str(tmp_path / "mine.yaml")), load_config("td3_lstm")
@@ -111,7 +112,8 @@ def test_a_config_extends_another_and_takes_whole_sections_by_name(tmp_path):
     for text, match in [("extends: td4_lstm\n", r"'td4_lstm' is neither a file nor a packaged config; packaged configs: \["),
                         ("extends: [td3_lstm]\n", r"'extends' must name a config .* got \['td3_lstm'\]"),
                         ("agent: sub/env_only.yaml\n", r"'sub/env_only.yaml' names a config without a 'agent' section"),
-                        ("extends: sub/missing.yaml\n", "does not exist")]:
+                        ("extends: sub/missing.yaml\n", "does not exist"),
+                        ("extends: sub/list.yaml\n", r"'sub/list.yaml' is not a config \(its top level is not a mapping\)")]:
         (tmp_path / "bad.yaml").write_text(text)
         with pytest.raises(ConfigError, match=match):
             load_config(str(tmp_path / "bad.yaml"))
