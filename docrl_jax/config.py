@@ -247,6 +247,11 @@ def packaged_configs_dir() -> Path:
     return Path(str(resources.files("docrl_jax.configs")))
 
 
+def packaged_config_names() -> list[str]:
+    """The names `--config` takes without a path, sorted."""
+    return sorted(p.stem for p in packaged_configs_dir().glob("*.yaml"))
+
+
 def resolve_config_path(name_or_path: str | os.PathLike) -> Path:
     """A bare name ('td3_lstm' or 'td3_lstm.yaml') is looked up in the packaged configs; anything
     containing a path separator, or an existing file, is used as a path."""
@@ -261,8 +266,8 @@ def resolve_config_path(name_or_path: str | os.PathLike) -> Path:
     candidate = packaged / f"{stem}.yaml"
     if candidate.is_file():
         return candidate
-    names = sorted(p.stem for p in packaged.glob("*.yaml"))
-    raise ConfigError(f"config {text!r} is neither a file nor a packaged config; packaged configs: {names}")
+    raise ConfigError(f"config {text!r} is neither a file nor a packaged config; packaged configs: "
+                      f"{packaged_config_names()}")
 
 
 def parse_overrides(items: list[str] | None) -> dict[str, Any]:

@@ -28,7 +28,7 @@ from pathlib import Path
 from rich.syntax import Syntax
 
 from docrl_jax import sharding
-from docrl_jax.config import Config, load_config, to_yaml
+from docrl_jax.config import Config, load_config, packaged_config_names, to_yaml
 from docrl_jax.errors import ConfigError, RunDirError
 from docrl_jax.train import program_store
 from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
@@ -39,7 +39,7 @@ __all__ = ["EXIT_CONFIG", "EXIT_INTERRUPTED", "EXIT_NONFINITE", "EXIT_OK", "buil
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m docrl_jax.train", description=__doc__.split("\n\n")[0])
-    p.add_argument("--config", help="packaged config name (td3_lstm, sac_lstm, ddpg_mlp, sac_mlp) or a YAML path")
+    p.add_argument("--config", help=f"packaged config name ({', '.join(packaged_config_names())}) or a YAML path")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one config value (YAML scalar); repeatable")
     p.add_argument("--run-dir", help="output directory (default runs/<name>-<UTC time>)")
