@@ -323,14 +323,14 @@ def _compose(path: Path, chain: tuple[Path, ...]) -> dict:
             raise ConfigError(f"{path}: {key}: {name!r} is not a config (its top level is not a mapping)")
         return other
 
+    # Every dict here is freshly parsed, so merging may build on them without copies.
     out = load(raw.pop("extends"), "extends") if "extends" in raw else {}
-    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in out.items()}
     for key, value in raw.items():
         if key in SECTIONS and isinstance(value, str):
             section = load(value, key).get(key)
             if not isinstance(section, dict):
                 raise ConfigError(f"{path}: {key}: {value!r} names a config without a {key!r} section")
-            value = dict(section)
+            value = section
         elif key in SECTIONS and isinstance(value, dict) and isinstance(out.get(key), dict):
             value = {**out[key], **value}
         out[key] = value
