@@ -4,6 +4,7 @@ evaluation, and the steps/s of a CPU Gymnasium vector loop. For the GPU machine;
     python benchmarks/peers.py --trainers sac ppo --seeds 0 1 2 --budget-s 600
     python benchmarks/peers.py --trainers sac --sweep num_envs=128,512 --sweep grad_updates_per_step=16,64
     python benchmarks/peers.py --trainers ppo --sweep unroll_length=5,10 --set ppo.num_envs=8192
+    python benchmarks/peers.py --trainers ppo --recipe playground_locomotion   # MuJoCo Playground's recipe
     python benchmarks/peers.py --gym-loop --gym-num-envs 1 16 64     # NumPy-driven Gymnasium loop, steps/s
     python benchmarks/peers.py --smoke                                # everything tiny, CPU, 1-2 min
 
@@ -25,11 +26,9 @@ in). The run then stops (Brax has no early stop: the callback raises) unless --t
 does not reach the target within --budget-s is stopped at its next evaluation and reported as not
 reached, with its best.
 
-Default hyperparameters (DEFAULTS below): Brax's published Ant recipes (brax README / training
-notebook: SAC num_envs 128, batch 512, 64 gradient updates per step, lr 6e-4, min replay 8192; PPO
-num_envs 4096, batch 2048, unroll 5, 32 minibatches, 4 updates per batch, lr 3e-4, entropy 1e-2,
-reward scaling 10), with our episode length 500 and the paper's discount 0.99, evaluated 50 times
-over num_timesteps. --set and --sweep change them (KEY or TRAINER.KEY; a KEY applies to each
+Hyperparameters: --recipe picks a published recipe (RECIPES below: Brax's Ant recipes, the default,
+or MuJoCo Playground's dm_control-suite or locomotion recipes, networks included), with our episode
+length 500. --set and --sweep change its train() arguments (KEY or TRAINER.KEY; a KEY applies to each
 trainer whose `train` takes it; unknown keys are an error naming the valid ones).
 
 Writes peers_<tag>.json (meta, every run with its evaluation curve) and peers_<tag>.md (one row per
@@ -55,19 +54,52 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import run_meta, write_results  # noqa: E402
 
 TRAINERS = ("sac", "ppo")
-DEFAULTS = {
-    "sac": dict(num_timesteps=20_000_000, num_evals=50, episode_length=500, action_repeat=1, num_envs=128,
-                batch_size=512, grad_updates_per_step=64, learning_rate=6e-4, discounting=0.99,
-                reward_scaling=1.0, normalize_observations=True, min_replay_size=8192,
-                max_replay_size=1_048_576, num_eval_envs=128, deterministic_eval=True),
-    "ppo": dict(num_timesteps=200_000_000, num_evals=50, episode_length=500, action_repeat=1, num_envs=4096,
-                batch_size=2048, unroll_length=5, num_minibatches=32, num_updates_per_batch=4,
-                learning_rate=3e-4, entropy_cost=1e-2, discounting=0.99, reward_scaling=10.0,
-                normalize_observations=True, num_eval_envs=128, deterministic_eval=True),
+# Published recipes: name -> trainer -> (brax train() kwargs, network kwargs). Our episode length (500)
+# replaces each recipe's own, and the paper's discount 0.99 Brax's Ant recipes'.
+#   brax_ant: Brax's Ant recipes (brax README / training notebook). SAC num_envs 128, batch 512, 64
+#     gradient updates per step, lr 6e-4, min replay 8192; PPO num_envs 4096, batch 2048, unroll 5, 32
+#     minibatches, 4 updates per batch, lr 3e-4, entropy 1e-2, reward scaling 10. Networks: Brax's
+#     defaults (SAC 256-256; PPO policy 32x4, value 256x5).
+#   playground_dm_control: MuJoCo Playground's tuned dm_control-suite recipes
+#     (mujoco_playground/config/dm_control_suite_params.py, the settings every task shares).
+#   playground_locomotion: MuJoCo Playground's locomotion PPO recipe (locomotion_params.py, its default:
+#     8,192 envs, batch 256, unroll 20, discount 0.97, gradient clipping 1; policy 128x4, value 256x5).
+RECIPES = {
+    "brax_ant": {
+        "sac": (dict(num_timesteps=20_000_000, num_evals=50, episode_length=500, action_repeat=1, num_envs=128,
+                     batch_size=512, grad_updates_per_step=64, learning_rate=6e-4, discounting=0.99,
+                     reward_scaling=1.0, normalize_observations=True, min_replay_size=8192,
+                     max_replay_size=1_048_576, num_eval_envs=128, deterministic_eval=True),
+                {"hidden_layer_sizes": (256, 256)}),
+        "ppo": (dict(num_timesteps=200_000_000, num_evals=50, episode_length=500, action_repeat=1, num_envs=4096,
+                     batch_size=2048, unroll_length=5, num_minibatches=32, num_updates_per_batch=4,
+                     learning_rate=3e-4, entropy_cost=1e-2, discounting=0.99, reward_scaling=10.0,
+                     normalize_observations=True, num_eval_envs=128, deterministic_eval=True),
+                {"policy_hidden_layer_sizes": (32, 32, 32, 32), "value_hidden_layer_sizes": (256,) * 5}),
+    },
+    "playground_dm_control": {
+        "sac": (dict(num_timesteps=5_000_000, num_evals=10, episode_length=500, action_repeat=1, num_envs=128,
+                     batch_size=512, grad_updates_per_step=8, learning_rate=1e-3, discounting=0.99,
+                     reward_scaling=1.0, normalize_observations=True, min_replay_size=8192,
+                     max_replay_size=4 * 1_048_576, num_eval_envs=128, deterministic_eval=True),
+                {"hidden_layer_sizes": (256, 256), "q_network_layer_norm": True}),
+        "ppo": (dict(num_timesteps=60_000_000, num_evals=10, episode_length=500, action_repeat=1, num_envs=2048,
+                     batch_size=1024, unroll_length=30, num_minibatches=32, num_updates_per_batch=16,
+                     learning_rate=1e-3, entropy_cost=1e-2, discounting=0.995, reward_scaling=10.0,
+                     normalize_observations=True, num_resets_per_eval=10, num_eval_envs=128,
+                     deterministic_eval=True),
+                {"policy_hidden_layer_sizes": (32, 32, 32, 32), "value_hidden_layer_sizes": (256,) * 5}),
+    },
+    "playground_locomotion": {
+        "ppo": (dict(num_timesteps=100_000_000, num_evals=10, episode_length=500, action_repeat=1, num_envs=8192,
+                     batch_size=256, unroll_length=20, num_minibatches=32, num_updates_per_batch=4,
+                     learning_rate=3e-4, entropy_cost=1e-2, discounting=0.97, reward_scaling=1.0,
+                     max_grad_norm=1.0, normalize_observations=True, num_resets_per_eval=10,
+                     num_eval_envs=128, deterministic_eval=True),
+                {"policy_hidden_layer_sizes": (128,) * 4, "value_hidden_layer_sizes": (256,) * 5}),
+    },
 }
-# Hidden layers of the networks (Brax's defaults: SAC 256-256; PPO policy 32x4, value 256x5).
-NETWORKS = {"sac": {"hidden_layer_sizes": (256, 256)},
-            "ppo": {"policy_hidden_layer_sizes": (32, 32, 32, 32), "value_hidden_layer_sizes": (256,) * 5}}
+DEFAULT_RECIPE = "brax_ant"
 SMOKE = {
     "sac": dict(num_timesteps=64, num_evals=2, episode_length=20, num_envs=4, batch_size=8, grad_updates_per_step=1,
                 min_replay_size=8, max_replay_size=512, num_eval_envs=2),
@@ -103,7 +135,7 @@ def _train_params(trainer: str) -> set[str]:
     return set(inspect.signature(mod.train).parameters) - _NOT_SETTABLE
 
 
-# Set by this script itself (seed: --seeds; the networks: NETWORKS), or not meaningful here.
+# Set by this script itself (seed: --seeds; the networks: the recipe), or not meaningful here.
 _NOT_SETTABLE = {"environment", "progress_fn", "policy_params_fn", "seed", "network_factory", "checkpoint_logdir",
                  "eval_env", "randomization_fn", "wrap_env", "wrap_env_fn", "restore_checkpoint_path",
                  "save_checkpoint_path", "restore_params", "restore_value_fn"}
@@ -122,9 +154,22 @@ def _targets(key: str, trainers, option: str) -> list[tuple[str, str]]:
     return out
 
 
-def configs(args) -> list[tuple[str, dict, str]]:
-    """(trainer, brax train kwargs, label naming the sweep point) for every trainer and sweep point."""
-    base = {t: {**DEFAULTS[t], **(SMOKE[t] if args.smoke else {})} for t in args.trainers}
+def recipe(name: str, trainer: str) -> tuple[dict, dict]:
+    """(train kwargs, network kwargs) of a published recipe; an error names the valid choices."""
+    if name not in RECIPES:
+        raise SystemExit(f"--recipe {name!r}: unknown; valid: {', '.join(RECIPES)}")
+    if trainer not in RECIPES[name]:
+        raise SystemExit(f"--recipe {name!r} has no {trainer} recipe; it has: {', '.join(RECIPES[name])}")
+    cfg, nets = RECIPES[name][trainer]
+    return dict(cfg), dict(nets)
+
+
+def configs(args) -> list[tuple[str, dict, dict, str]]:
+    """(trainer, brax train kwargs, network kwargs, label naming the recipe and sweep point) for every
+    trainer and sweep point."""
+    recipes = {t: recipe(args.recipe, t) for t in args.trainers}
+    base = {t: {**recipes[t][0], **(SMOKE[t] if args.smoke else {})} for t in args.trainers}
+    nets = {t: {**recipes[t][1], **(SMOKE_NETWORKS[t] if args.smoke else {})} for t in args.trainers}
     for item in args.set:
         key, sep, val = item.partition("=")
         if not sep:
@@ -143,7 +188,8 @@ def configs(args) -> list[tuple[str, dict, str]]:
         names = [n for n, _ in sweeps[t]]
         for combo in itertools.product(*[v for _, v in sweeps[t]]) if names else [()]:
             point = dict(zip(names, combo))
-            out.append((t, {**base[t], **point}, " ".join([t] + [f"{k}={v}" for k, v in point.items()])))
+            name = [t] + ([args.recipe] if args.recipe != DEFAULT_RECIPE else [])
+            out.append((t, {**base[t], **point}, nets[t], " ".join(name + [f"{k}={v}" for k, v in point.items()])))
     return out
 
 
@@ -175,8 +221,9 @@ def worker(spec: dict) -> None:
 
     trainer, cfg = spec["trainer"], dict(spec["config"])
     env = BraxHUAUV(scenario=spec["scenario"], episode_length=cfg["episode_length"], **spec["env"])
-    nets = {k: tuple(v) for k, v in spec["networks"].items()}
-    result = {"trainer": trainer, "seed": spec["seed"], "config": cfg, "networks": spec["networks"], "env": spec["env"],
+    nets = {k: tuple(v) if isinstance(v, list) else v for k, v in spec["networks"].items()}
+    result = {"trainer": trainer, "recipe": spec["recipe"], "seed": spec["seed"], "config": cfg,
+              "networks": spec["networks"], "env": spec["env"],
               "evals": [], "reached": False, "stop_reason": "end"}
     eval_total = 0.0
     state: dict = {}
@@ -264,11 +311,11 @@ def worker(spec: dict) -> None:
 
 # ----------------------------------------------------------------------------------------- parent
 
-def run_one(args, trainer: str, cfg: dict, seed: int, out_dir: str, tag: str, index: int) -> dict:
-    nets = (SMOKE_NETWORKS if args.smoke else NETWORKS)[trainer]
+def run_one(args, trainer: str, cfg: dict, nets: dict, seed: int, out_dir: str, tag: str, index: int) -> dict:
     log_path = os.path.join(out_dir, f"peers_{tag}_{trainer}{index}_seed{seed}.log")
     result_path = log_path[:-4] + ".json"
-    spec = {"trainer": trainer, "config": cfg, "networks": {k: list(v) for k, v in nets.items()}, "seed": seed,
+    spec = {"trainer": trainer, "recipe": args.recipe, "config": cfg, "seed": seed,
+            "networks": {k: list(v) if isinstance(v, tuple) else v for k, v in nets.items()},
             "scenario": 2, "trials": args.trials, "max_steps": args.max_steps, "eval_seed": args.eval_seed,
             "target": args.target, "budget_s": args.budget_s, "to_end": args.to_end, "result_path": result_path,
             "env": env_settings(args.env_from)}
@@ -292,7 +339,7 @@ def run_one(args, trainer: str, cfg: dict, seed: int, out_dir: str, tag: str, in
         with open(result_path) as f:
             res = json.load(f)
     except (OSError, json.JSONDecodeError):
-        res = {"trainer": trainer, "seed": seed, "config": cfg, "evals": [], "reached": False}
+        res = {"trainer": trainer, "recipe": args.recipe, "seed": seed, "config": cfg, "evals": [], "reached": False}
     if proc.returncode != 0:
         res["stop_reason"] = f"worker exited {proc.returncode} (see {os.path.basename(log_path)})"
     res["log"] = os.path.basename(log_path)
@@ -308,9 +355,9 @@ def peers(args) -> int:
     os.makedirs(args.out, exist_ok=True)
     runs, summary = [], []
     cfgs = configs(args)
-    for index, (trainer, cfg, label) in enumerate(cfgs):
+    for index, (trainer, cfg, nets, label) in enumerate(cfgs):
         for seed in args.seeds:
-            r = run_one(args, trainer, cfg, seed, args.out, tag, index)
+            r = run_one(args, trainer, cfg, nets, seed, args.out, tag, index)
             r["label"] = label
             runs.append(r)
             print(f"{r['label']} seed {seed}: " + (
@@ -338,7 +385,7 @@ def write_tables(args, meta: dict, runs: list[dict], tag: str, summary: list[str
              "best": f"{x['best']['air_to_water']} / {x['best']['water_to_air']}",
              "final": f"{x['final']['air_to_water']} / {x['final']['water_to_air']}" if x["final"] else "–",
              "stop": x.get("stop_reason", "?"), "elapsed": x.get("elapsed_s", "–")} for x in runs]
-    settings = {"env_from": args.env_from, "env": env_settings(args.env_from), "target": args.target, "budget_s": args.budget_s, "trials": args.trials, "max_steps": args.max_steps,
+    settings = {"recipe": args.recipe, "env_from": args.env_from, "env": env_settings(args.env_from), "target": args.target, "budget_s": args.budget_s, "trials": args.trials, "max_steps": args.max_steps,
                 "eval_seed": args.eval_seed, "to_end": args.to_end, "smoke": args.smoke}
     write_results(args.out, f"peers_{tag}", f"Brax peers on our env: launch to {args.target:.0%} in both directions",
                   meta, rows, [("trainer / config", "label"), ("seed", "seed"), ("reached", "reached"),
@@ -395,6 +442,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--trainers", nargs="+", choices=TRAINERS, default=list(TRAINERS))
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--recipe", default=DEFAULT_RECIPE, choices=sorted(RECIPES),
+                    help="the published recipe the runs start from (RECIPES; default: Brax's Ant recipes)")
     ap.add_argument("--set", action="append", default=[], metavar="[TRAINER.]KEY=VALUE",
                     help="a brax train() argument for every run (e.g. sac.learning_rate=3e-4, num_envs=256)")
     ap.add_argument("--sweep", action="append", default=[], metavar="[TRAINER.]KEY=V1,V2",

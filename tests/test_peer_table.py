@@ -49,3 +49,21 @@ def test_main_writes_table_and_figure(tmp_path):
     md = (tmp_path / "peer_table.md").read_text()
     assert "| ours: td3_lstm | 0, 1, 2 | 72.6, 72.8, 65.6 | 72.6 |" in md
     assert "200.5, no (budget at 304)" in md and (tmp_path / "peer_success_vs_time.png").stat().st_size > 10_000
+
+
+def test_recipe_runs_group_by_recipe_and_keep_recorded_times():
+    new = os.path.join(ROOT, "benchmarks", "results", "h100x4", "peers_2026_11_27", "res")
+    files = [os.path.join(new, f"peers_ppo_loco_s{s}.json") for s in (0, 1, 2)]
+    groups = peer_table.peer_groups(files + [os.path.join(new, "peers_ppo_e8192_s0.json")])
+    loco = groups["Brax ppo (playground_locomotion recipe)"]   # a recipe's own settings are not "changes"
+    recorded = sorted(r["time_to_target_s"] for f in files for r in json.load(open(f))["runs"])
+    assert sorted(r["time"] for r in loco) == recorded
+    assert [r["seed"] for r in groups["Brax ppo (num_envs=8192)"]] == [0]
+
+
+def test_a_recipe_without_the_trainer_is_refused_naming_what_it_has():
+    import peers
+    with pytest.raises(SystemExit, match="no sac recipe; it has: ppo"):
+        peers.recipe("playground_locomotion", "sac")
+    cfg, nets = peers.recipe("playground_dm_control", "sac")
+    assert nets["q_network_layer_norm"] is True and cfg["grad_updates_per_step"] == 8
