@@ -11,12 +11,24 @@ not change the work), at a fixed training progress; the table reports the median
 calls of ms per update, compile time separately, and trained samples per ms (batch x trained steps).
 Which updates run the delayed actor follows the config's `agent.policy_freq` (0: the paper's
 schedule, every 2nd update at progress 0); `agent.policy_freq=1` times critic + actor on every update.
+
+`--trace DIR` also runs one more call of each variant under `jax.profiler.trace` (a Perfetto trace
+per variant in DIR) and reads the device's kernels from it: how many launch per update, how long the
+device is busy per update against the wall time per update (the rest is time between kernels), and
+the kernels that take the most time (`<stem>_kernels.md`). Every variant also counts the fusions and
+library calls in its compiled program (`hlo_kernels`: the whole scan, an upper bound on the kernels
+one update launches).
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import glob
+import gzip
+import json
 import os
+import re
 import statistics
 import sys
 import time
@@ -62,7 +74,42 @@ def random_batch(config, agent, key) -> dict:
             "start": start, "carry": carry, "mask": jnp.cumsum(start.at[:, 0].set(False), axis=1) == 0}
 
 
-def measure(config_name: str, variant: str, updates: int, repeats: int, progress: float) -> dict:
+def device_kernels(trace_dir: str) -> tuple[list[dict], dict]:
+    """The kernel events of the device timelines in the Perfetto trace under `trace_dir`: complete
+    events of the processes named after a GPU, on their stream lines (not the derived "XLA Ops" /
+    "XLA Modules" lines, which overlap the kernels); and every line of those processes with its event
+    count and total microseconds, to read the trace by when its lines are named otherwise."""
+    path = sorted(glob.glob(os.path.join(trace_dir, "**", "perfetto_trace.json.gz"), recursive=True))[-1]
+    with gzip.open(path, "rt") as f:
+        events = json.load(f)["traceEvents"]
+    procs = {e["pid"]: e["args"]["name"] for e in events if e.get("ph") == "M" and e.get("name") == "process_name"}
+    threads = {(e["pid"], e["tid"]): e["args"]["name"] for e in events
+               if e.get("ph") == "M" and e.get("name") == "thread_name"}
+    gpu = {pid for pid, name in procs.items() if "GPU" in name or "gpu" in name}
+    device = [e for e in events if e.get("ph") == "X" and e["pid"] in gpu]
+    lines = collections.defaultdict(lambda: [0, 0.0])
+    for e in device:
+        line = lines[f"{procs[e['pid']]} / {threads.get((e['pid'], e['tid']), e['tid'])}"]
+        line[0] += 1
+        line[1] += e["dur"]
+    return [e for e in device if "stream" in threads.get((e["pid"], e["tid"]), "").lower()], dict(lines)
+
+
+def kernel_summary(kernels: list[dict], updates: int, wall_ms: float, top: int = 15) -> dict:
+    by_name = collections.defaultdict(lambda: [0, 0.0])
+    for k in kernels:
+        by_name[k["name"]][0] += 1
+        by_name[k["name"]][1] += k["dur"]
+    busy_us = sum(v[1] for v in by_name.values())
+    ranked = sorted(by_name.items(), key=lambda kv: -kv[1][1])[:top]
+    return {"kernels_per_update": round(len(kernels) / updates, 1),
+            "busy_ms_per_update": round(busy_us / 1e3 / updates, 4), "wall_ms_per_update": round(wall_ms, 4),
+            "top": [{"kernel": n[:90], "calls_per_update": round(c / updates, 2), "us_per_update": round(t / updates, 2),
+                     "share_of_busy": round(t / busy_us, 3) if busy_us else None} for n, (c, t) in ranked]}
+
+
+def measure(config_name: str, variant: str, updates: int, repeats: int, progress: float,
+            trace_dir: str | None = None) -> dict:
     label, precision, sets = variant.split("|")
     overrides = [s for s in sets.split(";") if s]
     config = load_config(config_name, overrides)
@@ -93,10 +140,33 @@ def measure(config_name: str, variant: str, updates: int, repeats: int, progress
         times.append(time.perf_counter() - t0)
     ms = 1e3 * statistics.median(times) / updates
     trained = config.replay.batch_size * (config.replay.seq_len - config.replay.burn_in)
-    return {"variant": label, "precision": precision, "overrides": overrides, "batch_size": config.replay.batch_size,
+    hlo = compiled.as_text()
+    extra = {"hlo_kernels": len(re.findall(r"= \S+ (?:fusion|custom-call)\(", hlo))}
+    if trace_dir is not None:
+        where = os.path.join(trace_dir, re.sub(r"\W+", "_", label))
+        with jax.profiler.trace(where, create_perfetto_trace=True):
+            jax.block_until_ready(compiled(state, batch, jax.random.PRNGKey(repeats + 1)))
+        kernels, lines = device_kernels(where)
+        extra["kernels"] = {**kernel_summary(kernels, updates, ms), "device_lines": lines}
+    return {**extra, "variant": label, "precision": precision, "overrides": overrides, "batch_size": config.replay.batch_size,
             "seq_len": config.replay.seq_len, "burn_in": config.replay.burn_in, "compile_s": round(compile_s, 2),
             "ms_per_update": round(ms, 4), "ms_all": [round(1e3 * t / updates, 4) for t in times],
             "trained_samples_per_ms": round(trained / ms), "finite": bool(jnp.all(jnp.isfinite(out[1])))}
+
+
+def write_kernel_tables(out: str, stem: str, config: str, rows: list[dict]) -> None:
+    lines = [f"# Kernels of one update of {config} (from a profiler trace of one call per variant)", ""]
+    for r in rows:
+        k = r["kernels"]
+        lines += [f"## {r['variant']}", "",
+                  f"{k['kernels_per_update']} kernels per update; the device busy {k['busy_ms_per_update']} ms of "
+                  f"{k['wall_ms_per_update']} ms per update (timed calls); {r['hlo_kernels']} fusions and library "
+                  "calls in the compiled scan", "", "| kernel | calls / update | us / update | share of busy |",
+                  "|---|---|---|---|"]
+        lines += [f"| `{t['kernel']}` | {t['calls_per_update']} | {t['us_per_update']} | {t['share_of_busy']} |"
+                  for t in k["top"]] + [""]
+    with open(os.path.join(out, f"{stem}_kernels.md"), "w") as f:
+        f.write("\n".join(lines))
 
 
 def main(argv=None) -> int:
@@ -108,14 +178,17 @@ def main(argv=None) -> int:
     ap.add_argument("--progress", type=float, default=0.0, help="training progress the updates see (schedules)")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
     ap.add_argument("--stem", default="update_cost")
+    ap.add_argument("--trace", metavar="DIR", help="also profile one call per variant and tabulate its kernels")
     args = ap.parse_args(argv)
     meta, rows = run_meta(), []
     cols = [("variant", "variant"), ("precision", "precision"), ("batch", "batch_size"), ("seq", "seq_len"),
             ("compile s", "compile_s"), ("ms / update", "ms_per_update"), ("trained samples / ms", "trained_samples_per_ms"),
-            ("finite", "finite")]
+            ("kernels in the program", "hlo_kernels"), ("finite", "finite")]
     for v in args.variant or DEFAULT_VARIANTS:
-        rows.append(measure(args.config, v, args.updates, args.repeats, args.progress))
+        rows.append(measure(args.config, v, args.updates, args.repeats, args.progress, args.trace))
         table = write_results(args.out, args.stem, f"One update of {args.config}", meta, rows, cols)
+        if args.trace:
+            write_kernel_tables(args.out, args.stem, args.config, rows)
     print(table)
     return 0
 
