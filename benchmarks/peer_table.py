@@ -6,7 +6,7 @@
 
 Reads the JSON the two scripts write and groups the runs by trainer and configuration: runs with the
 same settings from several peers.py files (e.g. seeds split over GPUs) are one group, and a Brax group
-is named by its recipe (peers.py's RECIPES; files written before recipes existed used Brax's Ant
+is named by its recipe (peers.py's `recipe`; files written before recipes existed used Brax's Ant
 recipes) and the settings that differ from it. Writes
 `peer_table.md`, one row per group (each seed's time, the median, the median's ratio to the first
 --ours group's, each seed's best and final evaluation, env steps/s and updates/s), and
@@ -36,7 +36,7 @@ import statistics
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from peers import DEFAULT_RECIPE, RECIPES  # noqa: E402
+from peers import DEFAULT_RECIPE, recipe  # noqa: E402
 
 
 def our_groups(paths: list[str]) -> dict[str, list[dict]]:
@@ -76,9 +76,10 @@ def peer_groups(paths: list[str]) -> dict[str, list[dict]]:
             d = json.load(f)
         for r in d["runs"]:
             final = r["final"] or {}
-            recipe = r.get("recipe", DEFAULT_RECIPE)
-            changed = {k: v for k, v in r["config"].items() if RECIPES[recipe][r["trainer"]][0].get(k) != v}
-            parts = ([] if recipe == DEFAULT_RECIPE else [f"{recipe} recipe"]) + [f"{k}={v}" for k, v in changed.items()]
+            name = r.get("recipe", DEFAULT_RECIPE)
+            published = recipe(name, r["trainer"])[0]
+            changed = {k: v for k, v in r["config"].items() if published.get(k) != v}
+            parts = ([] if name == DEFAULT_RECIPE else [f"{name} recipe"]) + [f"{k}={v}" for k, v in changed.items()]
             label = f"Brax {r['trainer']} (" + ("; ".join(parts) if parts else "Brax's defaults") + ")"
             groups.setdefault(label, []).append({
                 "seed": r["seed"], "reached": r["reached"], "time": r.get("time_to_target_s"),
