@@ -5,6 +5,8 @@
     state = env.step(state, action)             # action in [-1, 1]^3
     state = env.reset_to(key, position, yaw, goal)
 
+    env = docrl_jax.envs.make(tank="wall_one_opening")   # a tank file, a folder, or a packaged tank
+
 `make(..., auto_reset=True)` wraps the env so finished episodes restart inside `step`.
 """
 
@@ -43,10 +45,14 @@ def eval_pair(scenario: int, direction: str) -> tuple[tuple[float, ...], tuple[f
     raise ValueError(f"direction {direction!r}: valid directions are 'air_to_water', 'water_to_air'")
 
 
-def make(scenario: int = 2, auto_reset: bool = False, **overrides: Any):
-    """Builds the environment for scenario 1, 2 or 3; keyword overrides set any `EnvParams` field."""
+def make(scenario: int = 2, auto_reset: bool = False, tank=None, **overrides: Any):
+    """Builds the environment for scenario 1, 2 or 3, or 0 (procedural tanks); keyword overrides set any
+    `EnvParams` field. `tank`: a tank file, a folder of them, or a packaged tank's name (docs/TANKS.md):
+    episodes fly in those tanks (scenario 0)."""
     from docrl_jax.envs.huauv import HUAUVEnv
     from docrl_jax.envs.wrappers import AutoResetWrapper
+    if tank is not None:
+        scenario, overrides = 0, {**overrides, "tank": str(tank)}
     env = HUAUVEnv(make_params(scenario, **overrides))
     return AutoResetWrapper(env) if auto_reset else env
 

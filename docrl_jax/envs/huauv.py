@@ -105,9 +105,14 @@ class HUAUVEnv:
                                             self.mj_model.body_inertia[self.body_id],
                                             params.rotor_moment_constant)
         self.procedural = params.scenario == 0
+        # A tank set (params.tank: tank files, docrl_jax/envs/tanks.py): a Layout stacked over its tanks.
+        self.tanks = None
         if self.procedural:  # walls from the MJCF; floor and obstacles from each episode's layout
             self.walls = geometry.solids_from_model(self.mj_model, "walls")
             self.slot_ids = layouts.slot_ids(self.mj_model)
+            if params.tank is not None:
+                from docrl_jax.envs import tanks
+                self.tanks = tanks.load_set(params.tank, params)
         else:
             self.boundary = geometry.solids_from_model(self.mj_model, "boundary")
             self.obstacles = geometry.solids_from_model(self.mj_model, "obstacles")
@@ -151,6 +156,17 @@ class HUAUVEnv:
         return true_ranges[:sensors.NUM_BEAMS], sensors.corrupt(self.params, plant, key, true_ranges, underwater)
 
     # ------------------------------------------------------------------ sampling
+    def draw_layout(self, key: jax.Array):
+        """The layout of a new episode of a procedural tank: one of the tank set's tanks (params.tank), or a
+        layout drawn by the generator (with structures when params.layout_structures > 0)."""
+        if self.tanks is not None:
+            i = jax.random.randint(key, (), 0, self.tanks.index.shape[0])
+            return jax.tree.map(lambda x: x[i], self.tanks)
+        if self.params.layout_structures > 0:
+            from docrl_jax.envs import structures
+            return structures.draw(key, self.params)
+        return layouts.draw(key, self.params)
+
     def _sample_point(self, key, water_fraction, avoid=None, min_distance=0.0, max_distance=np.inf, n=32,
                       layout=None):
         """A free point for a start or goal: in air or water, clear of obstacles and walls."""
@@ -158,12 +174,14 @@ class HUAUVEnv:
         obstacles, _, z_min = self._tank(layout)
         k_med, k_xy, k_z = jax.random.split(key, 3)
         water = jax.random.uniform(k_med) < water_fraction
-        band = jnp.asarray(p.water_band(z_min))
-        if self.procedural:  # never inside the episode's floor, whatever z_bounds / water_z_range say
-            band = band.at[0].set(jnp.maximum(band[0], layouts.floor_top(layout) + 0.1))
-        lo, hi = jnp.where(water, band, jnp.asarray(p.air_z_range))
-        half = geometry.TANK_HALF_WIDTH - p.wall_margin
-        xy = jax.random.uniform(k_xy, (n, 2), minval=-half, maxval=half)
+        if self.procedural:  # the layout's region of the medium (layouts.default_regions, or narrower)
+            region = jnp.where(water, layout.regions[1], layout.regions[0])
+            xy = jax.random.uniform(k_xy, (n, 2), minval=region[0, :2], maxval=region[1, :2])
+            lo, hi = region[0, 2], region[1, 2]
+        else:
+            lo, hi = jnp.where(water, jnp.asarray(p.water_band(z_min)), jnp.asarray(p.air_z_range))
+            half = geometry.TANK_HALF_WIDTH - p.wall_margin
+            xy = jax.random.uniform(k_xy, (n, 2), minval=-half, maxval=half)
         z = jax.random.uniform(k_z, (n, 1), minval=lo, maxval=hi)
         cand = jnp.concatenate([xy, z], -1)
         ok = jax.vmap(lambda c: geometry.signed_distance(obstacles, c))(cand) >= p.goal_clearance
@@ -186,11 +204,12 @@ class HUAUVEnv:
     # ------------------------------------------------------------------ reset
     def reset(self, key: jax.Array, layout=None, plant=None) -> EnvState:
         """Random start (air or water), random yaw, random goal; level, at rest. A procedural tank
-        draws its layout from `key` unless `layout` is given (e.g. `layouts.held_out(i, params)`);
+        draws its layout from `key` (`draw_layout`) unless `layout` is given (e.g. `layouts.held_out(i,
+        params)`, a tank of `tanks.load_set`); starts and goals lie in the layout's regions;
         the plant is drawn from the `dr_*` ranges unless `plant` is given."""
         k_start, k_yaw, k_goal, k_rest = jax.random.split(key, 4)
         if self.procedural and layout is None:
-            layout = layouts.draw(jax.random.fold_in(key, 1), self.params)
+            layout = self.draw_layout(jax.random.fold_in(key, 1))
         start = self._sample_point(k_start, self.params.start_water_fraction, layout=layout)
         yaw = jax.random.uniform(k_yaw, minval=-jnp.pi, maxval=jnp.pi)
         return self.reset_to(k_rest, start, yaw, self.sample_goal(k_goal, start, layout), layout=layout, plant=plant)
@@ -205,7 +224,9 @@ class HUAUVEnv:
         goal = _one_env("reset_to", "goal", jnp.asarray(goal, jnp.float32), (3,))
         yaw = _one_env("reset_to", "yaw", jnp.asarray(yaw, jnp.float32), ())
         k_wind, k_noise, k_next = jax.random.split(key, 3)
-        if self.procedural and layout is None:
+        if self.procedural and layout is None and self.tanks is not None:   # a tank as it is
+            layout = self.draw_layout(jax.random.fold_in(key, 1))
+        elif self.procedural and layout is None:   # random obstacles only, cleared from the start and goal
             k_layout = jax.random.fold_in(key, 1)
             index = layouts.draw(k_layout, p).index
             layout = layouts.generate(layouts.layout_key(index), p, clear=jnp.stack([position, goal]))

@@ -1,23 +1,31 @@
 """Procedural tanks (scenario 0): an obstacle layout per episode, drawn inside the compiled program.
 
-The scene is `assets/procedural.xml`: the tank's walls, a floor and 12 box and 6 capsule slots. A
-`Layout` gives every slot (floor first, then boxes, then capsules) its pose and size; `place` writes
+The scene is `assets/procedural.xml`: the tank's walls, a floor and 24 box and 8 capsule slots. A
+`Layout` gives every slot (floor first, then boxes, then capsules) its pose and size, and the regions
+where starts and goals are drawn in air and in water; `place` writes
 them into the MJX model and data the range sensors cast against, and `solids` gives the same solids to
 the hull collision check and to the start/goal sampler, so the sensors, the collisions and the
 sampler see one tank. What a layout holds, with the `layout_*` ranges of `EnvParams`:
 
   * a floor whose top lies in `layout_floor_top` (scenarios 1-2: -1.3 m, 3: -2.0 m); the episode's
     lower bound is the floor + 0.2 m, as in every scenario;
-  * `layout_boxes` boxes, each a post or wall panel standing on the floor (half length 0.15-1.0 m,
+  * `layout_boxes` boxes (in the first 12 box slots), each a post or wall panel standing on the floor (half length 0.15-1.0 m,
     half thickness 0.1-0.3 m, top from 0.6 m under water to above the walls) or, with probability
     `layout_beam_fraction`, a beam (half length 0.8-2.5 m, pitched up to 0.4 rad) at any height;
-  * `layout_capsules` capsules, each a riser from the floor (radius 0.2-0.6 m, top from 0.6 m under
+  * `layout_capsules` capsules (in the first 6 capsule slots), each a riser from the floor (radius 0.2-0.6 m, top from 0.6 m under
     water to above the walls, like scenario 2's) or a bar (radius 0.1-0.25 m, half length 0.8-2.3 m,
     tilted 45-90 degrees from vertical, like scenario 3's) at any height;
   * every centre uniform over the tank (|x|, |y| <= 4.3 m), every yaw uniform;
   * two points kept clear: one in air, one in water (or, for `reset_to`, the given start and goal).
     Every obstacle nearer than `goal_clearance` to them is removed, so an episode always has a free
-    start and goal (the sampler's fallback).
+    start and goal (the sampler's fallback);
+  * start and goal regions: the whole tank inside the walls' margin, `air_z_range` in air and the water
+    band above the floor in water (a structured layout, docrl_jax/envs/structures.py, or a tank file,
+    docrl_jax/envs/tanks.py, narrows them).
+
+The slots past the random obstacles' (12 boxes, 6 capsules) stay parked here; structures and tank files
+fill them. The random draws are those of a 12 + 6 slot scene, so layout `i` is the same as before the
+scene had more slots.
 
 Layouts are numbered: layout `i` is `generate(layout_key(i), p)`, the same on every machine. Ids
 `0 .. HELD_OUT_IDS - 1` are the held-out set (the robustness benchmark's); training draws its ids from
@@ -33,7 +41,7 @@ import numpy as np
 from flax import struct
 
 from docrl_jax.envs import geometry
-from docrl_jax.envs.params import BOX_SLOTS, CAPSULE_SLOTS, EnvParams
+from docrl_jax.envs.params import BOX_SLOTS, CAPSULE_SLOTS, RANDOM_BOXES, RANDOM_CAPSULES, EnvParams
 from docrl_jax.resources import resource_dir
 
 SCENE = "procedural.xml"
@@ -55,7 +63,8 @@ class Layout:
     size: jax.Array    # (S, 3) MuJoCo geom_size: box half extents; capsule (radius, half length, 0)
     z_min: jax.Array   # () the episode's lower vertical bound: floor top + 0.2
     clear: jax.Array   # (2, 3) points kept clear of every obstacle: [air, water]
-    index: jax.Array   # () int32 layout id (-1: generated from a key that is no id's)
+    index: jax.Array   # () int32 layout id (-1: generated from a key that is no id's); a tank set's: its tank
+    regions: jax.Array  # (2, 2, 3) where starts and goals are drawn: [air, water] x [low corner, high corner]
 
 
 def layout_key(index) -> jax.Array:
@@ -100,8 +109,8 @@ def _slot_draws(key, n: int, p: EnvParams, draws: int):
 
 
 def _boxes(key, p: EnvParams, floor_top, z_min):
-    """Poses and sizes of every box slot (used or not): posts/panels on the floor, or beams."""
-    k, u, xy, beam = _slot_draws(key, BOX_SLOTS, p, 9)
+    """Poses and sizes of every random box slot (used or not): posts/panels on the floor, or beams."""
+    k, u, xy, beam = _slot_draws(key, RANDOM_BOXES, p, 9)
     half_thick = u(k[2], 0.1, 0.3)
     # Standing: from inside the floor up to a top between 0.6 m under water and above the walls.
     bottom, top = floor_top - 0.1, u(k[3], -0.6, 5.4)
@@ -116,8 +125,8 @@ def _boxes(key, p: EnvParams, floor_top, z_min):
 
 
 def _capsules(key, p: EnvParams, floor_top, z_min):
-    """Poses and sizes of every capsule slot: risers on the floor, or tilted bars."""
-    n = CAPSULE_SLOTS
+    """Poses and sizes of every random capsule slot: risers on the floor, or tilted bars."""
+    n = RANDOM_CAPSULES
     k, u, xy, bar = _slot_draws(key, n, p, 8)
     # Riser: vertical segment from just inside the floor to a top between 0.6 m under water and 6 m.
     seg_lo, seg_hi = floor_top - 0.05, u(k[2], -0.6, 6.0)
@@ -151,9 +160,9 @@ def generate(key: jax.Array, p: EnvParams, clear=None) -> Layout:
     cap_pos, cap_rot, cap_size = _capsules(k_caps, p, floor_top, z_min)
     clear = _clear_points(k_clear, p, z_min) if clear is None else jnp.asarray(clear, jnp.float32)
 
-    used_box = jnp.arange(BOX_SLOTS) < jax.random.randint(k_nb, (), p.layout_boxes[0], p.layout_boxes[1] + 1)
-    used_cap = jnp.arange(CAPSULE_SLOTS) < jax.random.randint(k_nc, (), p.layout_capsules[0],
-                                                               p.layout_capsules[1] + 1)
+    used_box = jnp.arange(RANDOM_BOXES) < jax.random.randint(k_nb, (), p.layout_boxes[0], p.layout_boxes[1] + 1)
+    used_cap = jnp.arange(RANDOM_CAPSULES) < jax.random.randint(k_nc, (), p.layout_capsules[0],
+                                                                 p.layout_capsules[1] + 1)
     candidates = _solids(box_pos, box_rot, box_size, cap_pos, cap_rot, cap_size)
     near = lambda dist: jnp.min(jax.vmap(lambda c: dist(candidates, c))(clear), 0) < p.goal_clearance  # noqa: E731
     used_box &= ~near(geometry.box_distances)
@@ -163,10 +172,35 @@ def generate(key: jax.Array, p: EnvParams, clear=None) -> Layout:
              jnp.array([[5.0, 5.0, 0.1]]))
     box_pos = jnp.where(used_box[:, None], box_pos, _PARKED)
     cap_pos = jnp.where(used_cap[:, None], cap_pos, _PARKED)
+    box_pos, box_rot, box_size = park_rest(box_pos, box_rot, box_size, BOX_SLOTS)
+    cap_pos, cap_rot, cap_size = park_rest(cap_pos, cap_rot, cap_size, CAPSULE_SLOTS)
     return Layout(pos=jnp.concatenate([floor[0], box_pos, cap_pos]).astype(jnp.float32),
                   rot=jnp.concatenate([floor[1], box_rot, cap_rot]).astype(jnp.float32),
                   size=jnp.concatenate([floor[2], box_size, cap_size]).astype(jnp.float32),
-                  z_min=z_min, clear=clear, index=jnp.asarray(-1, jnp.int32))
+                  z_min=z_min, clear=clear, index=jnp.asarray(-1, jnp.int32),
+                  regions=default_regions(p, floor_top))
+
+
+def park_rest(pos, rot, size, slots: int):
+    """(pos, rot, size) of n solids padded with parked slots up to `slots`."""
+    n = slots - pos.shape[0]
+    return (jnp.concatenate([pos, jnp.tile(jnp.asarray(_PARKED), (n, 1))]),
+            jnp.concatenate([rot, jnp.tile(jnp.eye(3), (n, 1, 1))]),
+            jnp.concatenate([size, jnp.full((n, 3), 0.1)]))
+
+
+def default_regions(p: EnvParams, floor_top) -> jax.Array:
+    """(2, 2, 3) start and goal regions of a tank whose floor top is `floor_top`: the whole tank inside the
+    walls' margin, `air_z_range` in air and, in water, the water band above the episode's lower bound
+    (never inside the floor)."""
+    half = geometry.TANK_HALF_WIDTH - p.wall_margin
+    z_min = floor_top + 0.2 if p.z_bounds is None else p.bounds[0]
+    w_lo, w_hi = p.water_band(z_min)
+    w_lo = jnp.maximum(w_lo, floor_top + 0.1)
+    air = jnp.array([[-half, -half, p.air_z_range[0]], [half, half, p.air_z_range[1]]], jnp.float32)
+    water = jnp.stack([jnp.array([-half, -half, 0.0]).at[2].set(w_lo),
+                       jnp.array([half, half, 0.0]).at[2].set(w_hi)]).astype(jnp.float32)
+    return jnp.stack([air, water])
 
 
 def _solids(box_pos, box_rot, box_size, cap_pos, cap_rot, cap_size) -> geometry.Solids:

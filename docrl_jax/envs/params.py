@@ -180,13 +180,22 @@ class EnvParams:
         "Range (m) of the floor's top: scenarios 1-2 have -1.3, scenario 3 -2.0. The lower bound is the "
         "floor + 0.2 (as in every scenario).")
     layout_boxes: tuple[int, int] = documented((3, 10),
-        "Range of the number of boxes (posts, wall panels, beams); at most the 12 box slots.")
+        "Range of the number of random boxes (posts, wall panels, beams); at most 12.")
     layout_capsules: tuple[int, int] = documented((1, 5),
-        "Range of the number of capsules (risers of radius 0.2-0.6 m, tilted or horizontal bars); at most "
-        "the 6 capsule slots.")
+        "Range of the number of random capsules (risers of radius 0.2-0.6 m, tilted or horizontal bars); at "
+        "most 6.")
     layout_beam_fraction: float = documented(0.35,
         "Probability that a box or capsule is a horizontal/tilted beam at a random height instead of "
         "standing on the floor.")
+    layout_structures: float = documented(0.0,
+        "Probability that a procedural layout also holds structures a person builds into a tank: a wall "
+        "across the tank with one opening, a ceiling with one way through, a room with a door, a dead end, "
+        "a grove (docrl_jax/envs/structures.py); its start and goal regions then lie on either side. "
+        "0 = today's random obstacles only.")
+    tank: str | None = documented(None,
+        "A tank file, or a folder of them (docs/TANKS.md): every episode flies in one of these tanks, drawn "
+        "per episode, with its start and goal regions, instead of the scenario's (scenario 0 only). None = "
+        "the scenario's tank.")
     layout_held_out: bool = documented(False,
         "True: episodes draw from the held-out layouts (ids 0 .. layouts.HELD_OUT_IDS - 1, the robustness "
         "benchmark's); False: from the training ids, which never include those.")
@@ -300,6 +309,10 @@ def validate(p: EnvParams) -> EnvParams:
                 _fail(name, value, "must be a finite number")
         elif name == "substep_unroll":
             continue  # checked below
+        elif name == "tank":
+            if value is not None and not isinstance(value, str):
+                _fail(name, value, "must be the path of a tank file or folder (a string), or None")
+            continue
         elif isinstance(ref, tuple) or ref is None:
             if value is None and ref is None:
                 continue
@@ -368,8 +381,12 @@ def validate(p: EnvParams) -> EnvParams:
     return p
 
 
-# Slots of assets/procedural.xml (a test checks the file against these).
-BOX_SLOTS, CAPSULE_SLOTS = 12, 6
+# Slots of assets/procedural.xml (a test checks the file against these): what one tank can hold, a
+# tank file's solids included. The random obstacles of a procedural layout use the first RANDOM_BOXES
+# and RANDOM_CAPSULES of them (their draws are those of the 12 + 6 slot scene, so every numbered layout
+# is what it always was); structures and tank files use any.
+BOX_SLOTS, CAPSULE_SLOTS = 24, 8
+RANDOM_BOXES, RANDOM_CAPSULES = 12, 6
 MAX_LATENCY = 10  # control steps (2 s): the queues are this long at most
 
 
@@ -384,9 +401,14 @@ def _validate_ranges(p: EnvParams) -> None:
 
     ordered("layout_floor_top", lambda v: v >= -4.4, lambda v: v <= -0.8, "both in [-4.4, -0.8] m (the walls "
             "reach -4.6; the water band above the floor needs room)")
-    ordered("layout_boxes", lambda v: v >= 0, lambda v: v <= BOX_SLOTS, f"in [0, {BOX_SLOTS}] (the box slots)", True)
-    ordered("layout_capsules", lambda v: v >= 0, lambda v: v <= CAPSULE_SLOTS,
-            f"in [0, {CAPSULE_SLOTS}] (the capsule slots)", True)
+    ordered("layout_boxes", lambda v: v >= 0, lambda v: v <= RANDOM_BOXES,
+            f"in [0, {RANDOM_BOXES}] (the random obstacles' box slots)", True)
+    ordered("layout_capsules", lambda v: v >= 0, lambda v: v <= RANDOM_CAPSULES,
+            f"in [0, {RANDOM_CAPSULES}] (the random obstacles' capsule slots)", True)
+    if not 0.0 <= p.layout_structures <= 1.0:
+        _fail("layout_structures", p.layout_structures, "must be a probability in [0, 1]")
+    if p.tank is not None and p.scenario != 0:
+        _fail("tank", p.tank, "tank files are tanks of scenario 0 (docrl_jax.envs.make(tank=PATH) sets it)")
     if not 0.0 <= p.layout_beam_fraction <= 1.0:
         _fail("layout_beam_fraction", p.layout_beam_fraction, "must be a probability in [0, 1]")
     ordered("dr_hull_volume_scale", lambda v: v >= 0, lambda v: v <= 100, "both in [0, 100] (0 = no buoyancy)")

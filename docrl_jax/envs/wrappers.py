@@ -43,10 +43,12 @@ class AutoResetWrapper:
         """The env's `reset_to`, in this wrapper's state layout (with `info["final_obs"]`)."""
         return self._first(self.env.reset_to(key, position, yaw, goal, **kwargs))
 
-    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+    def step(self, state: EnvState, action: jax.Array, layout=None) -> EnvState:
+        """The env's step; an episode that ends restarts in `layout` when given (a procedural tank's level
+        from a level sampler, e.g. the trainer's curriculum), else in the layout its reset draws."""
         inner = state.replace(info={k: v for k, v in state.info.items() if k != "final_obs"})
         stepped = self.env.step(inner, action)
-        fresh = self.env.reset(reset_key(stepped))
+        fresh = self.env.reset(reset_key(stepped), layout=layout)
         done = stepped.done
         sim = jax.tree.map(lambda f, s: jnp.where(done, f, s), fresh.sim, stepped.sim)
         obs = jnp.where(done, fresh.obs, stepped.obs)
