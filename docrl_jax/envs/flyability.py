@@ -1,0 +1,238 @@
+"""Can a tank be flown? An occupancy grid of the tank and a wavefront distance field over it, in pure JAX
+(jit- and vmap-safe: a structured-tank generator checks thousands of levels at once on a GPU, the tank-file
+loader a few on the CPU).
+
+  * The grid: cells of `GRID_STEP` = 0.25 m, centres on multiples of the step, symmetric about the tank's
+    axis and with a layer on the water surface: x, y in -4.75 .. 4.75 (39 each, inside the walls' inner
+    faces at +-4.9 by more than half a cell), z in -4.25 .. 4.75 (37: from above the lowest floor top a
+    tank may have, -4.4, up to the episode's top bound 4.8). `GRID_SHAPE` = (39, 39, 37).
+  * A free cell (`free_cells`): its centre lies within the episode's vertical bounds and at least
+    `clearance(p)` from the walls, the floor and every obstacle. Any 26-neighbour move between two free
+    cells then stays at least clearance - step * sqrt(3) / 2 (~0.33 m) from every solid (distances are
+    1-Lipschitz), so a route never slips through a solid between cells.
+  * Start and goal cells (`region_cells`): free cells inside a layout's air or water region (grown by half
+    a cell, so a point region picks its nearest cells) and at least `goal_clearance` from the obstacles,
+    as the env draws its starts and goals.
+  * `distance_field`: route length from every free cell to the nearest seed cell over 26-neighbour moves
+    (Bellman-Ford sweeps of shifted copies of a padded grid until nothing changes, as JaxUED's maze check
+    floods its grid). In open space the 26-neighbour metric overestimates the straight line by up to
+    13 % (8 % in an axis plane; nothing along an axis or a diagonal), so `length / straight` of an
+    unobstructed trip lies in 1 .. 1.13 plus the cells' spread.
+  * `check`: both trips of a layout, A-W (air region to water region) and W-A, as a `Route`.
+  * `route_path`: the polyline of one route, steepest descent down a field (docs, a route-following policy).
+
+Cost, `python -m docrl_jax.envs.flyability` on the 2-core development CPU (compiled; median of 5): one
+layout 124 ms, 64 layouts vmapped 6.3 s (~98 ms each). Of one layout's time, the cells' distances to the
+33 solids are ~40 ms, each wavefront ~8 ms (22 and 11 sweeps in generated layout 3), each straight-line field
+~5 ms. Vertically the clearance is conservative (`clearance`): with the default water band a floor
+at -0.8 m (the highest a tank file may have) leaves no water cell (the top one, z = -0.25, is 0.55 m
+above it, a float's width short), and such a tank reads as not flyable; at -0.9 m it has one layer.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from docrl_jax.envs import geometry, layouts
+from docrl_jax.envs.params import EnvParams
+
+GRID_STEP = 0.25                                              # m
+GRID_X = np.arange(-19, 20, dtype=np.float32) * GRID_STEP    # cell centres along x (and y), m
+GRID_Z = np.arange(-17, 20, dtype=np.float32) * GRID_STEP    # cell centres along z, m
+GRID_SHAPE = (GRID_X.size, GRID_X.size, GRID_Z.size)         # (39, 39, 37)
+MAX_SWEEPS = 1000                                            # cap of `distance_field`'s wavefront
+
+_CENTRES = np.stack(np.meshgrid(GRID_X, GRID_X, GRID_Z, indexing="ij"), -1)   # (X, Y, Z, 3)
+_WALL_GAP = geometry.TANK_HALF_WIDTH - np.maximum(np.abs(_CENTRES[..., 0]), np.abs(_CENTRES[..., 1]))
+_ORIGIN = _CENTRES[0, 0, 0]
+_OFFSETS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
+                     if (i, j, k) != (0, 0, 0)], np.int32)                   # (26, 3)
+_WEIGHTS = (GRID_STEP * np.sqrt(np.abs(_OFFSETS).sum(-1))).astype(np.float32)  # step, step*sqrt2, step*sqrt3
+_NO_WALLS = geometry.Solids(*(np.zeros(shape, np.float32) for shape in
+                              ((0, 3), (0, 3, 3), (0, 3), (0, 3), (0, 3), (0,))))
+
+
+class Route(NamedTuple):
+    """Both trips of a layout, [A-W, W-A]; A-W starts in the air region and ends in the water region."""
+    flyable: jax.Array      # (2,) bool: both regions have cells and every start cell reaches a goal cell
+    length: jax.Array       # (2,) mean route length over the start cells, m (inf unless flyable)
+    longest: jax.Array      # (2,) the longest of those routes, m (inf unless flyable)
+    straight: jax.Array     # (2,) mean straight-line distance from a start cell to its nearest goal cell, m
+    #                         (inf when a region has no cells); length / straight is the detour ratio
+    start_cells: jax.Array  # (2,) int32 start-region cells (0: the region lies inside solids or out of bounds)
+
+
+def clearance(p: EnvParams) -> float:
+    """The distance (m) a free cell keeps from every solid: the evaluation's fan collision distance plus
+    5 cm. The fans are horizontal, so vertically this is conservative: the hull itself reaches ~0.05 m
+    above and below its centre, yet a cell under a beam or above the floor needs the full clearance."""
+    return p.collision_distance + 0.05
+
+
+def _centres() -> jax.Array:
+    return jnp.asarray(_CENTRES)
+
+
+def _solid_gaps(layout: layouts.Layout):
+    """Signed distances (X, Y, Z) from every cell centre to the nearest obstacle and to the floor."""
+    points = _centres().reshape(-1, 3)
+    def gap(solids):
+        return jax.vmap(lambda c: geometry.signed_distance(solids, c))(points).reshape(GRID_SHAPE)
+    return gap(layouts.obstacles(layout)), gap(layouts.boundary(layout, _NO_WALLS))
+
+
+def _free(layout: layouts.Layout, p: EnvParams, obstacle_gap, floor_gap) -> jax.Array:
+    z = _centres()[..., 2]
+    in_bounds = (z >= layout.z_min) & (z <= p.bounds[1])
+    nearest = jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), jnp.asarray(_WALL_GAP))
+    return in_bounds & (nearest >= clearance(p))
+
+
+def _region(layout: layouts.Layout, p: EnvParams, medium, free, obstacle_gap) -> jax.Array:
+    lo, hi = layout.regions[medium, 0], layout.regions[medium, 1]
+    c = _centres()
+    inside = jnp.all((c >= lo - GRID_STEP / 2) & (c <= hi + GRID_STEP / 2), -1)
+    return free & inside & (obstacle_gap >= p.goal_clearance)
+
+
+def free_cells(layout: layouts.Layout, p: EnvParams) -> jax.Array:
+    """bool (X, Y, Z): cells whose centre lies within the episode's vertical bounds (layout.z_min ..
+    p.bounds[1]) and at least `clearance(p)` from the walls, the floor and every obstacle."""
+    return _free(layout, p, *_solid_gaps(layout))
+
+
+def region_cells(layout: layouts.Layout, p: EnvParams, medium) -> jax.Array:
+    """bool (X, Y, Z): free cells inside `layout.regions[medium]` (0 air, 1 water) grown by half a cell on
+    each side, at least `p.goal_clearance` from the obstacles: where the env can put a start or a goal."""
+    obstacle_gap, floor_gap = _solid_gaps(layout)
+    return _region(layout, p, medium, _free(layout, p, obstacle_gap, floor_gap), obstacle_gap)
+
+
+def _relax(d: jax.Array) -> jax.Array:
+    """One sweep: every cell takes the best of itself and its 26 neighbours plus the move's length."""
+    nx, ny, nz = d.shape
+    padded = jnp.pad(d, 1, constant_values=jnp.inf)
+    best = d
+    for (i, j, k), w in zip(_OFFSETS, _WEIGHTS):
+        best = jnp.minimum(best, padded[1 + i:1 + i + nx, 1 + j:1 + j + ny, 1 + k:1 + k + nz] + w)
+    return best
+
+
+def distance_field(free: jax.Array, seeds: jax.Array) -> jax.Array:
+    """float32 (X, Y, Z): route length (m) from every free cell to the nearest free seed cell over
+    26-neighbour moves through free cells (move lengths step, step * sqrt2, step * sqrt3); inf where no
+    seed is reachable and on every cell that is not free. Sweeps until nothing changes (at most
+    `MAX_SWEEPS`; a route needs one sweep per move, ~100 in this grid)."""
+    free = jnp.asarray(free, bool)
+    inf = jnp.float32(jnp.inf)
+    d0 = jnp.where(free & seeds, jnp.float32(0.0), inf)
+
+    def sweep(state):
+        d, _, n = state
+        new = jnp.where(free, _relax(d), inf)
+        return new, jnp.any(new < d), n + 1
+
+    def more(state):
+        return state[1] & (state[2] < MAX_SWEEPS)
+
+    d, _, _ = jax.lax.while_loop(more, sweep, (d0, jnp.asarray(True), jnp.asarray(0, jnp.int32)))
+    return d
+
+
+def _straight_line(seeds: jax.Array) -> jax.Array:
+    """float32 (X, Y, Z): Euclidean distance from every cell centre to the nearest seed cell centre; exact,
+    as three 1-D passes of the squared distance (it separates by axis)."""
+    sq = jnp.where(seeds, jnp.float32(0.0), jnp.float32(jnp.inf))
+    for axis, coords in enumerate((GRID_X, GRID_X, GRID_Z)):
+        gap2 = jnp.asarray((coords[:, None] - coords[None, :]) ** 2)          # (to, from)
+        moved = jnp.moveaxis(sq, axis, -1)
+        sq = jnp.moveaxis(jnp.min(moved[..., None, :] + gap2, -1), -1, axis)
+    return jnp.sqrt(sq)
+
+
+def check(layout: layouts.Layout, p: EnvParams) -> Route:
+    """Both trips of `layout` (module doc): a wavefront from the water cells (A-W) and one from the air
+    cells (W-A), read at the other region's cells."""
+    obstacle_gap, floor_gap = _solid_gaps(layout)
+    free = _free(layout, p, obstacle_gap, floor_gap)
+    air, water = (_region(layout, p, m, free, obstacle_gap) for m in (0, 1))
+    starts, goals = jnp.stack([air, water]), jnp.stack([water, air])
+    fields = jax.vmap(distance_field, (None, 0))(free, goals)
+    straight = jax.vmap(_straight_line)(goals)
+
+    n_start = jnp.sum(starts, (1, 2, 3))
+    has_cells = (n_start > 0) & (jnp.sum(goals, (1, 2, 3)) > 0)
+    reach = jnp.where(starts, fields, 0.0)
+    flyable = has_cells & jnp.all(jnp.isfinite(reach), (1, 2, 3))
+    per_cell = lambda x: jnp.sum(jnp.where(starts, x, 0.0), (1, 2, 3)) / jnp.maximum(n_start, 1)  # noqa: E731
+    inf = jnp.float32(jnp.inf)
+    return Route(flyable=flyable,
+                 length=jnp.where(flyable, per_cell(fields), inf),
+                 longest=jnp.where(flyable, jnp.max(reach, (1, 2, 3)), inf),
+                 straight=jnp.where(has_cells, per_cell(straight), inf),
+                 start_cells=n_start.astype(jnp.int32))
+
+
+def route_path(field, start, max_points: int = 400) -> jax.Array:
+    """float32 (max_points, 3): a polyline from the world point `start` down `field` (a `distance_field`)
+    to its seeds. Row 0 is `start`; row 1 the cell it enters by (of the 27 cells around its nearest,
+    the one with the least field + distance from `start`); then each row the neighbour of steepest descent
+    (largest drop per metre: along a shortest route). Once a seed is reached the rows repeat it; a route of
+    more than max_points - 2 moves is cut there (its last row's field is then > 0). Where no cell near
+    `start` reaches a seed, every row after the first is that nearest cell. Numpy or JAX input; jit-safe."""
+    field = jnp.asarray(field, jnp.float32)
+    start = jnp.asarray(start, jnp.float32)
+    shape = jnp.asarray(GRID_SHAPE)
+    offsets, weights = jnp.asarray(_OFFSETS), jnp.asarray(_WEIGHTS)
+    centre = lambda idx: jnp.asarray(_ORIGIN) + idx * GRID_STEP  # noqa: E731
+
+    def value(idx):
+        inside = jnp.all((idx >= 0) & (idx < shape), -1)
+        safe = jnp.clip(idx, 0, shape - 1)
+        return jnp.where(inside, field[safe[..., 0], safe[..., 1], safe[..., 2]], jnp.inf)
+
+    nearest = jnp.clip(jnp.round((start - _ORIGIN) / GRID_STEP).astype(jnp.int32), 0, shape - 1)
+    around = nearest + jnp.concatenate([jnp.zeros((1, 3), jnp.int32), offsets])
+    entry = around[jnp.argmin(value(around) + jnp.linalg.norm(centre(around) - start, axis=-1))]
+    entry = jnp.where(jnp.isfinite(value(entry)), entry, nearest)
+
+    def step(idx, _):
+        here = value(idx)
+        drop = (here - value(idx + offsets)) / weights
+        best = jnp.argmax(drop)
+        nxt = jnp.where((drop[best] > 0) & jnp.isfinite(here), idx + offsets[best], idx)
+        return nxt, centre(nxt)
+
+    _, points = jax.lax.scan(step, entry, None, length=max_points - 2)
+    return jnp.concatenate([start[None], centre(entry)[None], points])
+
+
+def _time(batch: int = 64, repeats: int = 5) -> None:
+    """Prints the time of `check` on one generated layout and vmapped over `batch` of them (compiled)."""
+    import time
+
+    from docrl_jax.envs.params import make_params
+    p = make_params(0)
+    many = jax.vmap(lambda i: layouts.generate(layouts.layout_key(i), p))(jnp.arange(batch))
+    one = jax.tree.map(lambda x: x[0], many)
+    for name, fn, arg in (("one layout", jax.jit(lambda l: check(l, p)), one),
+                          (f"{batch} layouts (vmap)", jax.jit(jax.vmap(lambda l: check(l, p))), many)):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(arg))
+        compiled = time.perf_counter() - t0
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            route = jax.block_until_ready(fn(arg))
+            times.append(time.perf_counter() - t0)
+        print(f"{name}: compile+first {compiled:.2f} s, then median {np.median(times) * 1e3:.1f} ms "
+              f"(min {min(times) * 1e3:.1f}) on {jax.devices()[0].device_kind}; "
+              f"flyable A-W {np.mean(np.asarray(route.flyable)[..., 0]):.2f}")
+
+
+if __name__ == "__main__":
+    _time()

@@ -1,0 +1,199 @@
+"""The flyability check (docrl_jax/envs/flyability.py) against independent references: the 26-neighbour
+wavefront against a closed form in open space and against a heap Dijkstra of our own on a random
+obstacle grid, free cells against hand-computed clearances, and whole checks of hand-built tanks (empty,
+a wall across the tank with and without an opening, a region inside a solid), one at a time and vmapped.
+
+Compiled programs: one jitted check, one vmapped check, one per-layout field program, small fields."""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from docrl_jax.envs import flyability as fly
+from docrl_jax.envs import layouts
+from docrl_jax.envs.params import make_params
+
+P = make_params(0)
+STEP = fly.GRID_STEP
+FLOOR_TOP = -1.3
+PARKED = np.array([0.0, 0.0, -50.0], np.float32)
+AIR_SIDE = [[-4.3, -4.3, 0.5], [-1.5, 4.3, 4.0]]      # x < 0 of a wall at x = 0
+WATER_SIDE = [[1.5, -4.3, -1.0], [4.3, 4.3, -0.4]]    # x > 0
+OPENING = (1.7, 3.3)                                   # y range of the 1.6 m opening
+
+
+def tank(air, water, boxes=()):
+    """A hand-built layout: floor top at FLOOR_TOP, every obstacle parked, then `boxes` ((centre,
+    half extents), axis-aligned) in the first box slots; regions given as points or (low, high)."""
+    base = layouts.generate(layouts.layout_key(0), P)
+    pos = np.tile(PARKED, (base.pos.shape[0], 1))
+    rot = np.tile(np.eye(3, dtype=np.float32), (base.pos.shape[0], 1, 1))
+    size = np.full((base.pos.shape[0], 3), 0.1, np.float32)
+    pos[0], size[0] = (0.0, 0.0, FLOOR_TOP - 0.1), (5.0, 5.0, 0.1)
+    for slot, (centre, half) in enumerate(boxes, start=1):
+        pos[slot], size[slot] = centre, half
+    region = lambda r: np.array(r if np.ndim(r) == 2 else [r, r], np.float32)  # noqa: E731
+    return base.replace(pos=jnp.asarray(pos), rot=jnp.asarray(rot), size=jnp.asarray(size),
+                        z_min=jnp.float32(FLOOR_TOP + 0.2),
+                        regions=jnp.asarray(np.stack([region(air), region(water)])))
+
+
+def wall(lo_y, hi_y):
+    """A box across x = 0 from y = lo_y to hi_y, from inside the floor to above the walls' top (5.4)."""
+    bottom, top = FLOOR_TOP - 0.1, 5.5
+    return ((0.0, (lo_y + hi_y) / 2, (bottom + top) / 2), (0.15, (hi_y - lo_y) / 2, (top - bottom) / 2))
+
+
+TANKS = {
+    "vertical": tank([0.0, 0.0, 2.0], [0.0, 0.0, -0.5]),
+    "diagonal": tank([-2.0, -2.0, 2.5], [1.0, 1.0, -0.5]),
+    "oblique": tank([-3.0, 1.0, 3.0], [2.5, -1.0, -0.5]),
+    "wall": tank(AIR_SIDE, WATER_SIDE, [wall(-5.0, 5.0)]),
+    "opening": tank(AIR_SIDE, WATER_SIDE, [wall(-5.0, OPENING[0]), wall(OPENING[1], 5.0)]),
+    "air_in_solid": tank([-3.0, -3.0, 2.0], [2.0, 2.0, -0.5], [((-3.0, -3.0, 2.0), (0.6, 0.6, 0.6))]),
+}
+NAMES = list(TANKS)
+
+
+@pytest.fixture(scope="module")
+def routes():
+    """check() of every tank, one at a time (one compiled program)."""
+    one = jax.jit(lambda layout: fly.check(layout, P))
+    return {name: jax.tree.map(np.asarray, one(layout)) for name, layout in TANKS.items()}
+
+
+@jax.jit
+def _grids(layout):
+    free = fly.free_cells(layout, P)
+    air, water = fly.region_cells(layout, P, 0), fly.region_cells(layout, P, 1)
+    return free, air, water, fly.distance_field(free, water)
+
+
+# ---------------------------------------------------------------- the wavefront alone
+def _dijkstra(free, seeds):
+    """Shortest 26-neighbour route lengths by a heap Dijkstra (our own reference)."""
+    dist = np.full(free.shape, np.inf)
+    heap = [(0.0, idx) for idx in zip(*np.nonzero(free & seeds))]
+    for _, idx in heap:
+        dist[idx] = 0.0
+    moves = [m for m in itertools.product((-1, 0, 1), repeat=3) if m != (0, 0, 0)]
+    while heap:
+        d, idx = heapq.heappop(heap)
+        if d > dist[idx]:
+            continue
+        for m in moves:
+            nb = tuple(np.add(idx, m))
+            if all(0 <= nb[a] < free.shape[a] for a in range(3)) and free[nb]:
+                nd = d + STEP * np.sqrt(np.abs(m).sum())
+                if nd < dist[nb] - 1e-9:
+                    dist[nb] = nd
+                    heapq.heappush(heap, (nd, nb))
+    return dist
+
+
+def test_distance_field_open_space_closed_form():
+    """No obstacle: the route to one seed is c*sqrt3 + (b-c)*sqrt2 + (a-b) steps for sorted offsets a>=b>=c."""
+    shape, seed = (9, 8, 7), (2, 5, 3)
+    seeds = np.zeros(shape, bool)
+    seeds[seed] = True
+    field = np.asarray(fly.distance_field(np.ones(shape, bool), seeds))
+    off = np.sort(np.abs(np.indices(shape) - np.array(seed)[:, None, None, None]), axis=0)
+    c, b, a = off
+    expected = STEP * (c * np.sqrt(3) + (b - c) * np.sqrt(2) + (a - b))
+    np.testing.assert_allclose(field, expected, rtol=1e-5)
+
+
+def test_distance_field_matches_dijkstra_among_obstacles():
+    rng = np.random.default_rng(3)
+    free = rng.random((10, 9, 8)) > 0.35
+    seeds = np.zeros_like(free)
+    seeds[0, 0, 0] = seeds[9, 8, 2] = True
+    free[0, 0, 0] = free[9, 8, 2] = True
+    field = np.asarray(fly.distance_field(free, seeds))
+    reference = _dijkstra(free, seeds)
+    assert np.isinf(reference).any() and np.isfinite(reference).sum() > 300   # walls cut some cells off
+    np.testing.assert_allclose(field, reference, rtol=1e-5)
+
+
+def test_free_cells_hand_computed():
+    """Clearance 0.55 m: from the floor top -1.3, the walls at 4.9, the wall box's faces at x = +-0.15."""
+    free, *_ = _grids(TANKS["wall"])
+    free = np.asarray(free)
+    assert fly.clearance(P) == pytest.approx(0.55)
+    ix = lambda x: int(np.argmin(np.abs(fly.GRID_X - x)))   # noqa: E731
+    iz = lambda z: int(np.argmin(np.abs(fly.GRID_Z - z)))   # noqa: E731
+    assert free.shape == fly.GRID_SHAPE == (39, 39, 37)
+    assert free[ix(-2.0), ix(0.0), iz(-0.5)] and not free[ix(-2.0), ix(0.0), iz(-1.0)]      # floor
+    assert free[ix(4.25), ix(0.0), iz(2.0)] and not free[ix(4.5), ix(0.0), iz(2.0)]         # tank wall
+    assert free[ix(-2.0), ix(-4.25), iz(2.0)] and not free[ix(-2.0), ix(4.5), iz(2.0)]
+    assert free[ix(0.75), ix(0.0), iz(2.0)] and not free[ix(0.5), ix(0.0), iz(2.0)]         # wall box
+    assert free[ix(-2.0), ix(0.0), iz(4.75)]                                                # top bound 4.8
+    assert not free[:, :, fly.GRID_Z < FLOOR_TOP + 0.2].any()
+
+
+# ---------------------------------------------------------------- whole checks of hand-built tanks
+@pytest.mark.parametrize("name", ["vertical", "diagonal"])
+def test_empty_tank_axis_and_diagonal_route_is_the_straight_line(routes, name):
+    r = routes[name]
+    lo, hi = np.asarray(TANKS[name].regions[:, 0])
+    straight = np.linalg.norm(hi - lo)          # air point to water point
+    assert r.flyable.all() and (r.start_cells == 1).all()
+    np.testing.assert_allclose(r.length, straight, atol=1e-4)
+    np.testing.assert_allclose(r.straight, straight, atol=1e-4)
+
+
+def test_empty_tank_oblique_route_within_the_metric_bound(routes):
+    r = routes["oblique"]
+    lo, hi = np.asarray(TANKS["oblique"].regions[:, 0])
+    straight = np.linalg.norm(hi - lo)
+    assert r.flyable.all()
+    assert (np.abs(r.straight - straight) <= STEP * np.sqrt(3)).all()   # point regions snap to cells
+    assert (r.length >= r.straight - 1e-4).all() and (r.length <= 1.13 * r.straight + STEP).all()
+    assert (r.length > r.straight + STEP).all()      # the 26-neighbour metric's detour off the diagonals
+
+
+def test_wall_across_the_tank_is_not_flyable(routes):
+    r = routes["wall"]
+    assert not r.flyable.any() and (r.start_cells > 100).all()
+    assert np.isinf(r.length).all() and np.isfinite(r.straight).all()
+
+
+def test_wall_with_an_opening_is_flown_through_the_opening(routes):
+    r = routes["opening"]
+    assert r.flyable.all()
+    assert (r.length > 1.2 * r.straight).all() and (r.longest >= r.length).all()
+    free, air, water, field = (np.asarray(x) for x in _grids(TANKS["opening"]))
+    start = np.array([-3.0, -3.0, 2.0], np.float32)
+    path = np.asarray(fly.route_path(field, start, max_points=200))
+    assert path.shape == (200, 3) and np.allclose(path[0], start)
+    end = np.round((path[-1] - fly._ORIGIN) / STEP).astype(int)
+    assert water[tuple(end)] and field[tuple(end)] == 0.0                   # it ends on a goal cell
+    cross = np.nonzero((path[:-1, 0] < 0) & (path[1:, 0] >= 0))[0]
+    assert cross.size == 1
+    a, b = path[cross[0]], path[cross[0] + 1]
+    y_at_wall = a[1] + (b[1] - a[1]) * (0 - a[0]) / (b[0] - a[0])
+    assert OPENING[0] < y_at_wall < OPENING[1]
+    moves = np.linalg.norm(np.diff(path[1:], axis=0), axis=1)
+    route_length = moves.sum()
+    assert route_length == pytest.approx(field[tuple(np.round((path[1] - fly._ORIGIN) / STEP).astype(int))],
+                                         abs=1e-3)                          # it follows a shortest route
+
+
+def test_region_inside_a_solid_has_no_start_cells(routes):
+    r = routes["air_in_solid"]
+    assert r.start_cells[0] == 0 and r.start_cells[1] > 0
+    assert not r.flyable.any() and np.isinf(r.length).all()
+
+
+def test_vmapped_batch_matches_one_at_a_time(routes):
+    batch = jax.tree.map(lambda *xs: jnp.stack(xs), *TANKS.values())
+    many = jax.jit(jax.vmap(lambda layout: fly.check(layout, P)))(batch)
+    for i, name in enumerate(NAMES):
+        for field, one, got in zip(fly.Route._fields, routes[name], many):
+            np.testing.assert_allclose(np.asarray(got[i]), one, rtol=1e-6, err_msg=f"{name}: {field}")
