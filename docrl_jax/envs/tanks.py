@@ -10,9 +10,9 @@
 docs/TANKS.md lists every key and rule. `load` checks a file against those rules and raises `TankError`
 (one line: the file, the solid or region, the problem, what is valid) before the env compiles anything: the
 longest check, `flyability.check` (a route both ways between the air and water regions), compiles once
-per parameter set (seconds on a CPU; then ~0.2 s a tank). `load_set` stacks a set of tanks (a file, a folder, a packaged tank's
-name, or "gallery") for `HUAUVEnv`; `save` writes any layout (e.g. `layouts.held_out(i, p)`) as a tank
-file to edit and fly again.
+per parameter set (seconds on a CPU; then ~0.2 s a tank). `load_set` stacks a set of tanks (a file, a
+folder, a packaged tank's name, or "gallery") for `HUAUVEnv`; `save` writes any layout (e.g.
+`layouts.held_out(i, p)`) as a tank file to edit and fly again.
 """
 
 from __future__ import annotations
