@@ -39,9 +39,8 @@ CAPSULE_KEYS = ("type", "name", "from", "to", "radius")
 REGION_KEYS = ("min", "max")
 SUFFIXES = (".yaml", ".yml", ".json")
 FLOOR_TOP_RANGE = (-4.4, -0.8)   # m: room under the water for a water region, above the walls' bottom (-4.6)
-OUTER_HALF_WIDTH = 5.1           # m: the walls' outer faces; solids may reach into the walls, not past them
 TOP = 5.4                        # m: the walls' top
-FLOOR_DEPTH = 0.2                # m: solids may reach into the floor slab (floor_top - 0.2 .. floor_top)
+FLOOR_DEPTH = 0.2                # m: a solid's centre may lie in the floor slab (floor_top - 0.2 .. floor_top)
 _TOL = 1e-4                      # m: slack on every limit, so that a saved layout loads again
 _GRID_POINTS = 33                # a side of the grid of points tried for a region's free point
 _REGION_NAMES = ("air", "water")
@@ -116,7 +115,7 @@ def _axis_rotation(axis: np.ndarray) -> np.ndarray:
 
 
 def _solid(entry, i: int, where: str):
-    """(kind, name, pos, rot, size, reach lo, reach hi) of solids[i]."""
+    """(kind, name, pos, rot, size) of solids[i]."""
     if not isinstance(entry, dict):
         raise TankError(f"{where}: solid {i + 1} must be a mapping with a type (box or capsule), not {entry!r}")
     kind = entry.get("type")
@@ -135,8 +134,7 @@ def _solid(entry, i: int, where: str):
             raise TankError(f"{at}: half_extents {half.tolist()} must all be > 0 (m)")
         angles = [_number(entry.get(k, 0.0), at, k) for k in ("yaw", "pitch", "roll")]
         rot = Rotation.from_euler("ZYX", angles, degrees=True).as_matrix()
-        corners = pos + (np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1).T * half) @ rot.T
-        return kind, name, pos, rot, half, corners.min(0), corners.max(0)
+        return kind, name, pos, rot, half
     _keys(entry, CAPSULE_KEYS, ("type", "from", "to", "radius"), at)
     a, b = _vector(entry["from"], at, "from"), _vector(entry["to"], at, "to")
     radius = _number(entry["radius"], at, "radius")
@@ -146,17 +144,19 @@ def _solid(entry, i: int, where: str):
     if half_length <= 0:
         raise TankError(f"{at}: from and to are the same point; a capsule needs two different ends")
     size = np.array([radius, half_length, 0.0])
-    return (kind, name, (a + b) / 2, _axis_rotation(b - a), size,
-            np.minimum(a, b) - radius, np.maximum(a, b) + radius)
+    return kind, name, (a + b) / 2, _axis_rotation(b - a), size
 
 
-def _check_inside(name, lo, hi, floor_top: float, where: str) -> None:
-    beyond = max(np.abs(lo[:2]).max(), np.abs(hi[:2]).max())
-    if beyond > OUTER_HALF_WIDTH + _TOL or lo[2] < floor_top - FLOOR_DEPTH - _TOL or hi[2] > TOP + _TOL:
+def _check_inside(name, centre, floor_top: float, where: str) -> None:
+    """A solid belongs to the tank when its centre lies inside it; its ends may reach into or past the
+    walls, the floor and the top (the procedural generator's beams, risers and posts do), where no start,
+    goal or beam can meet them."""
+    beyond = float(np.abs(centre[:2]).max())
+    if beyond > geometry.TANK_HALF_WIDTH + _TOL or not floor_top - FLOOR_DEPTH - _TOL <= centre[2] <= TOP + _TOL:
         raise TankError(
-            f"{where}: solid {name!r} reaches outside the tank (x, y {beyond:.2f} m from the axis, z "
-            f"{lo[2]:.2f} .. {hi[2]:.2f} m); valid: |x|, |y| <= {OUTER_HALF_WIDTH} (the walls' outer faces), "
-            f"z from {floor_top - FLOOR_DEPTH:.2f} (the floor's bottom) to {TOP} (the walls' top)")
+            f"{where}: solid {name!r} lies outside the tank (its centre {np.round(centre, 2).tolist()}); valid "
+            f"centres: |x|, |y| <= {geometry.TANK_HALF_WIDTH} (the walls' inner faces), z from "
+            f"{floor_top - FLOOR_DEPTH:.2f} (the floor's bottom) to {TOP} (the walls' top)")
 
 
 def _region(value, medium: str, floor_top: float, p: EnvParams, where: str) -> np.ndarray:
@@ -260,7 +260,7 @@ def _parse(path: Path, p: EnvParams) -> layouts.Layout:
         raise TankError(f"{where}: solids must be a list of boxes and capsules, not {entries!r}")
     solids = {"box": [], "capsule": []}
     for i, entry in enumerate(entries):
-        kind, name, *geo, lo, hi = _solid(entry, i, where)
+        kind, name, *geo = _solid(entry, i, where)
         if any(name == other[0] for group in solids.values() for other in group):
             raise TankError(f"{where}: solid {name!r} is named twice; every solid's name must be unique")
         solids[kind].append((name, *geo))
@@ -268,7 +268,7 @@ def _parse(path: Path, p: EnvParams) -> layouts.Layout:
         if len(solids[kind]) > limit:
             raise TankError(f"{where}: too many solids: {BOX_SLOTS} boxes and {CAPSULE_SLOTS} capsules at most: "
                             f"solid {name!r} is {kind} {len(solids[kind])}")
-        _check_inside(name, lo, hi, floor_top, where)
+        _check_inside(name, geo[0], floor_top, where)
 
     def slots(kind, n):
         group = solids[kind]
