@@ -219,15 +219,35 @@ class TrainConfig:
 
 
 @dataclass(frozen=True)
+class LevelsConfig:
+    sampler: str = documented("env",
+        "Where a training episode's procedural tank comes from (env.scenario 0 without env.tank). 'env': each "
+        "reset draws its own layout (env.layout_structures mixes in structured ones). 'uniform' and "
+        "'learnability': a pool of levels.capacity layouts from the same generator, each checked flyable "
+        "(docrl_jax/envs/flyability.py) before it enters, levels.refresh of them replaced with fresh ones "
+        "every chunk; 'uniform' samples and replaces uniformly, 'learnability' samples by each level's "
+        "learnability p(1 - p) (p: its training episodes' success, Beta(1, 1) prior) and replaces the least "
+        "learnable (docrl_jax/envs/curriculum.py).", ("env", "uniform", "learnability"))
+    capacity: int = documented(4096, "Levels in the pool.")
+    refresh: int = documented(256, "Pool levels replaced by fresh, flyable ones at the start of every chunk.")
+    temperature: float = documented(0.5, "learnability: draws are proportional to learnability^(1 / "
+                                         "temperature) (lower = greedier).")
+    uniform_mix: float = documented(0.3, "learnability: share of the draws spread uniformly over the pool, so "
+                                         "every level keeps being played and its score stays current.")
+
+
+@dataclass(frozen=True)
 class Config:
     name: str = documented("td3_lstm", "Run name: prefix of the default run directory and the policy's name.")
     env: EnvConfig = field(default_factory=EnvConfig)
     agent: AgentConfig = field(default_factory=AgentConfig)
     replay: ReplayConfig = field(default_factory=ReplayConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
+    levels: LevelsConfig = field(default_factory=LevelsConfig)
 
 
-SECTIONS = {"env": EnvConfig, "agent": AgentConfig, "replay": ReplayConfig, "train": TrainConfig}
+SECTIONS = {"env": EnvConfig, "agent": AgentConfig, "replay": ReplayConfig, "train": TrainConfig,
+            "levels": LevelsConfig}
 
 
 def field_docs() -> dict[str, str]:
@@ -567,6 +587,15 @@ def validate(c: Config) -> Config:
         _bad("agent.ou_theta", a.ou_theta, "must be in [0, 1] (mean reversion per step)")
     if a.init_alpha <= 0:
         _bad("agent.init_alpha", a.init_alpha, "must be > 0")
+    lv = c.levels
+    if lv.sampler != "env":
+        if e.scenario != 0 or "tank" in dict(e.overrides):
+            _bad("levels.sampler", lv.sampler, "a level pool needs procedural tanks: env.scenario 0 without env.tank")
+        if not 1 <= lv.refresh <= lv.capacity:
+            _bad("levels.refresh", lv.refresh, f"must be in [1, levels.capacity={lv.capacity}]")
+        if lv.temperature <= 0 or not 0.0 <= lv.uniform_mix <= 1.0:
+            _bad("levels.temperature/uniform_mix", (lv.temperature, lv.uniform_mix),
+                 "temperature must be > 0 and uniform_mix in [0, 1]")
     if t.eval_alongside and (why := alongside_blocker(c)):
         _bad("train.eval_alongside", True, f"not possible here: {why}; set it false (or auto)")
     if a.algo == "ddpg":
@@ -643,6 +672,8 @@ def alongside_blocker(c: Config) -> str | None:
     and one policy must drive them."""
     if c.train.eval_trained_actor and c.agent.policy_average_tau < 1.0:
         return "train.eval_trained_actor evaluates a second policy on the same episodes"
+    if c.levels.sampler != "env":
+        return f"levels.sampler={c.levels.sampler} draws the training envs' tanks from a pool"
     for name in TRAINING_ONLY_ENV:
         if env_kwargs(c).get(name, 0.0) > 0.0:
             return f"env.{name} ends the training env's episodes earlier than an evaluation's"

@@ -36,8 +36,9 @@ class AutoResetWrapper:
     def _first(state: EnvState) -> EnvState:
         return state.replace(info={**state.info, "final_obs": state.obs})
 
-    def reset(self, key: jax.Array) -> EnvState:
-        return self._first(self.env.reset(key))
+    def reset(self, key: jax.Array, **kwargs) -> EnvState:
+        """The env's `reset` (with its `layout` and `plant` arguments), in this wrapper's state layout."""
+        return self._first(self.env.reset(key, **kwargs))
 
     def reset_to(self, key: jax.Array, position, yaw, goal, **kwargs) -> EnvState:
         """The env's `reset_to`, in this wrapper's state layout (with `info["final_obs"]`)."""

@@ -143,6 +143,9 @@ def log_chunk(writer, m: dict, env_steps: int, sps: float) -> None:
         if k in m and float(np.sum(m["learn_iters"])):
             writer.add_scalar(f"train/{k}", float(np.mean(m[k])), env_steps)
     writer.add_scalar("train/env_steps_per_s", sps, env_steps)
+    for k in ("levels_learnability", "levels_success", "levels_route", "levels_flyable"):  # a level pool's
+        if k in m:
+            writer.add_scalar(f"levels/{k[len('levels_'):]}", float(np.mean(m[k])), env_steps)
     if "updates" in m:  # absent with train.updates_per_step 0
         writer.add_scalar("train/grad_updates_in_chunk", float(np.mean(m["updates"])), env_steps)
 

@@ -57,6 +57,8 @@ class RunnerState:
     key: jax.Array
     evals: Any = None        # evaluation.Lanes with train.eval_alongside: the evaluation's episodes are then
                              # the last lanes of `env`, after the num_envs training envs
+    levels: Any = None       # curriculum.LevelPool with levels.sampler 'uniform' or 'learnability'
+    level: Any = None        # [num_envs] int32: the pool level each env flies (with a pool)
 
 
 class Trainer(NamedTuple):
@@ -98,6 +100,11 @@ def make_trainer(config: Config) -> Trainer:
         return agent.actor.init_carry(batch_shape)
 
     evaluation = make_evaluation(config, agent.act, init_carry, memory, env)
+    pool = None
+    if config.levels.sampler != "env":   # a level pool (docrl_jax/envs/curriculum.py)
+        from docrl_jax.envs.curriculum import make_curriculum
+        lv = config.levels
+        pool = make_curriculum(env, lv.sampler, lv.capacity, lv.refresh, lv.temperature, lv.uniform_mix)
     lanes = evaluation.alongside   # None, or the evaluation's env lanes after the n training envs
     train_rows = (lambda x: x[:n]) if lanes else (lambda x: x)  # noqa: E731
 
@@ -108,7 +115,15 @@ def make_trainer(config: Config) -> Trainer:
     # (docrl_jax.train.sweep) passes them as traced inputs, one set per seed row.
     def init_total(key, total_steps, hp=None) -> RunnerState:
         k_agent, k_env, k_run = jax.random.split(key, 3)
-        env_state = jax.vmap(env.reset)(jax.random.split(k_env, n))
+        levels = level = None
+        if pool:
+            k_pool, k_level = jax.random.split(jax.random.fold_in(k_env, 1))
+            levels = pool.init(k_pool)
+            level = pool.sample(levels, k_level, n)
+            env_state = jax.vmap(lambda k, lv: env.reset(k, layout=lv))(jax.random.split(k_env, n),
+                                                                         pool.take(levels, level))
+        else:
+            env_state = jax.vmap(env.reset)(jax.random.split(k_env, n))
         example = _buffer_step(env_state.obs[0], jnp.zeros(3), jnp.zeros(()), env_state.obs[0], jnp.zeros((), bool),
                                jnp.zeros((), bool), jnp.zeros((), bool), init_carry())
         agent_state = agent.init(k_agent, hp)
@@ -122,7 +137,8 @@ def make_trainer(config: Config) -> Trainer:
                            carry=init_carry((n,)), noise=agent.init_noise(n), start=jnp.ones(n, bool),
                            ep_return=jnp.zeros(n), ep_arrivals=jnp.zeros(n, jnp.int32),
                            env_steps=jnp.zeros((), jnp.int32),
-                           total_steps=jnp.asarray(total_steps, jnp.int32), key=k_run, evals=evals)
+                           total_steps=jnp.asarray(total_steps, jnp.int32), key=k_run, evals=evals,
+                           levels=levels, level=level)
 
     def chunk(rs: RunnerState, hp=None):
         def iteration(rs: RunnerState, _):
@@ -147,8 +163,14 @@ def make_trainer(config: Config) -> Trainer:
             else:
                 action_all = action
 
-            # 2. Step all envs (auto-reset) and store the transition with its true next obs.
-            env_state = jax.vmap(env.step)(rs.env, action_all)
+            # 2. Step all envs (auto-reset; with a pool, an ended episode restarts in a pool level) and
+            # store the transition with its true next obs.
+            if pool:
+                k_level = jax.random.fold_in(k_rand, 1)
+                next_level = pool.sample(rs.levels, k_level, n)
+                env_state = jax.vmap(env.step)(rs.env, action_all, pool.take(rs.levels, next_level))
+            else:
+                env_state = jax.vmap(env.step)(rs.env, action_all)
             if lanes:
                 evals = lanes.count(evals, jax.tree.map(lambda x: x[n:], env_state))
             reward, done, info = jax.tree.map(train_rows, (env_state.reward, env_state.done, env_state.info))
@@ -163,6 +185,10 @@ def make_trainer(config: Config) -> Trainer:
                         "success_sum": jnp.sum(done & (arrivals > 0)),
                         "arrivals": jnp.sum(info["arrived"]), "collisions": jnp.sum(info["terminated"])}
             env_steps = rs.env_steps + n
+            levels, level = rs.levels, rs.level
+            if pool:
+                levels = pool.record(levels, level, done, arrivals > 0)
+                level = jnp.where(done, next_level, level)
 
             # 4. Gradient updates once start_steps are collected and every env holds a sequence.
             def updates(agent_state, key):
@@ -183,7 +209,7 @@ def make_trainer(config: Config) -> Trainer:
             rs = RunnerState(agent=agent_state, buffer=buf, env=env_state, carry=carry, noise=noise, start=done,
                              ep_return=jnp.where(done, 0.0, ep_return),
                              ep_arrivals=jnp.where(done, 0, arrivals), env_steps=env_steps,
-                             total_steps=rs.total_steps, key=key, evals=evals)
+                             total_steps=rs.total_steps, key=key, evals=evals, levels=levels, level=level)
             return rs, {**episodes, **upd, "learn": learn}
 
         if lanes:  # an evaluation the host asked for begins with this chunk, on the policy as it is now
@@ -191,8 +217,13 @@ def make_trainer(config: Config) -> Trainer:
                 evals, env_state = lanes.begin(rs.evals, rs.env, rs.agent.actor_average)
                 return rs.replace(evals=evals, env=env_state)
             rs = jax.lax.cond(rs.evals.begin, begin, lambda rs: rs, rs)
+        pool_metrics = {}
+        if pool:   # fresh flyable levels into the pool, the sampling weights recomputed
+            k_refresh, k_run = jax.random.split(rs.key)
+            levels, pool_metrics = pool.refresh(rs.levels, k_refresh)
+            rs = rs.replace(levels=levels, key=k_run)
         rs, m = jax.lax.scan(iteration, rs, None, length=iters_per_chunk)
-        out = _chunk_summary(m)
+        out = {**_chunk_summary(m), **pool_metrics}
         if lanes:  # the lanes' tally after this chunk: final once none is running
             out["evaluation"] = lanes.results(rs.evals)
         return rs, out
