@@ -88,8 +88,12 @@ def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature:
         return (1.0 - uniform_mix) * w / jnp.sum(w) + uniform_mix / capacity
 
     def init(key) -> LevelPool:
-        k_fill, k_more = jax.random.split(key)
-        levels, ok, route, share = candidates(k_fill, capacity)
+        # Filled in batches of `refresh` (one refresh's worth of candidates at a time): the check's grids of
+        # thousands of levels at once would not fit a GPU's memory.
+        batches = -(-capacity // refresh)
+        levels, ok, route, share = jax.lax.map(lambda k: candidates(k, refresh), jax.random.split(key, batches))
+        first = lambda x: x.reshape((-1,) + x.shape[2:])[:capacity]  # noqa: E731
+        levels, ok, route, share = jax.tree.map(first, levels), first(ok), first(route), jnp.mean(share)
         # Almost never needed: a slot whose candidate was not flyable takes a flyable one of the batch.
         first_ok = jnp.where(ok, jnp.arange(capacity), jnp.argmax(ok))
         levels = jax.tree.map(lambda x: x[first_ok], levels)
