@@ -234,6 +234,12 @@ class LevelsConfig:
                                          "temperature) (lower = greedier).")
     uniform_mix: float = documented(0.3, "learnability: share of the draws spread uniformly over the pool, so "
                                          "every level keeps being played and its score stays current.")
+    route_reward: float = documented(0.0,
+        "Ours, training only: reward per metre a step takes off the flyable route to the goal's region (air or "
+        "water) of the level, read from the distance field its flyability check computed, beside env's "
+        "straight-line progress_reward_scale. The route knows the way round a wall or through a ceiling's "
+        "opening, where the straight line pulls into the wall. The policy never sees the field. 0 = off; "
+        "needs a level pool (levels.sampler uniform or learnability).")
 
 
 @dataclass(frozen=True)
@@ -593,9 +599,13 @@ def validate(c: Config) -> Config:
             _bad("levels.sampler", lv.sampler, "a level pool needs procedural tanks: env.scenario 0 without env.tank")
         if not 1 <= lv.refresh <= lv.capacity:
             _bad("levels.refresh", lv.refresh, f"must be in [1, levels.capacity={lv.capacity}]")
+        if lv.route_reward < 0:
+            _bad("levels.route_reward", lv.route_reward, "must be >= 0 (0 = off)")
         if lv.temperature <= 0 or not 0.0 <= lv.uniform_mix <= 1.0:
             _bad("levels.temperature/uniform_mix", (lv.temperature, lv.uniform_mix),
                  "temperature must be > 0 and uniform_mix in [0, 1]")
+    elif lv.route_reward:
+        _bad("levels.route_reward", lv.route_reward, "needs a level pool: levels.sampler uniform or learnability")
     if t.eval_alongside and (why := alongside_blocker(c)):
         _bad("train.eval_alongside", True, f"not possible here: {why}; set it false (or auto)")
     if a.algo == "ddpg":

@@ -44,6 +44,8 @@ class LevelPool:
     successes: jax.Array   # (capacity,) of those, the ones that reached a goal
     cdf: jax.Array         # (capacity,) cumulative sampling weights, fixed between refreshes
     flyable: jax.Array     # () share of the last refresh's candidates that were flyable
+    fields: Any = None     # (capacity, 2, X, Y, Z) float16 route lengths to the water and the air region
+    #                        (flyability.check_with_fields), kept for the route reward; None without it
 
 
 class Curriculum(NamedTuple):
@@ -52,6 +54,7 @@ class Curriculum(NamedTuple):
     sample: Callable    # (pool, key, n) -> (n,) int32 level indices
     take: Callable      # (pool, indices) -> Layout with a leading (n,) axis
     record: Callable    # (pool, indices, done (n,), success (n,)) -> pool
+    to_region: Callable  # (pool, indices (n,), water (n,) bool, positions (n, 3)) -> (n,) route length (m)
 
 
 def learnability(pool: LevelPool) -> jax.Array:
@@ -61,10 +64,12 @@ def learnability(pool: LevelPool) -> jax.Array:
 
 
 def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature: float = 0.5,
-                    uniform_mix: float = 0.3, check: Callable = flyability.check) -> Curriculum:
+                    uniform_mix: float = 0.3, check: Callable = flyability.check,
+                    keep_fields: bool = False) -> Curriculum:
     """The pool's pure functions for `env` (an HUAUVEnv of procedural tanks; its `draw_layout` and params).
     `sampler`: 'uniform' or 'learnability' (module doc). `check(level, params) -> flyability.Route`
-    decides which candidates may enter."""
+    decides which candidates may enter. `keep_fields`: the pool keeps each level's distance fields
+    (`flyability.check_with_fields`, then the check) for `to_region`."""
     if sampler not in SAMPLERS:
         raise ValueError(f"sampler={sampler!r}: valid samplers are {', '.join(SAMPLERS)}")
     if not 1 <= refresh <= capacity:
@@ -75,7 +80,12 @@ def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature:
         """(n levels drawn by the env's generator, flyable (n,), route (n,)), flyable ones first."""
         keys = jax.random.split(key, 2 * n)
         levels = jax.vmap(env.draw_layout)(keys)
-        route = jax.vmap(lambda lv: check(lv, p))(levels)
+        if keep_fields:
+            route, fields = jax.vmap(lambda lv: flyability.check_with_fields(lv, p))(levels)
+            levels = (levels, fields.astype(jnp.float16))
+        else:
+            route = jax.vmap(lambda lv: check(lv, p))(levels)
+            levels = (levels, None)
         ok = jnp.all(route.flyable, -1)
         order = jnp.argsort(~ok, stable=True)[:n]
         take = lambda x: x[order]  # noqa: E731
@@ -96,10 +106,10 @@ def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature:
         levels, ok, route, share = jax.tree.map(first, levels), first(ok), first(route), jnp.mean(share)
         # Almost never needed: a slot whose candidate was not flyable takes a flyable one of the batch.
         first_ok = jnp.where(ok, jnp.arange(capacity), jnp.argmax(ok))
-        levels = jax.tree.map(lambda x: x[first_ok], levels)
+        (levels, fields) = jax.tree.map(lambda x: x[first_ok], levels)
         zeros = jnp.zeros(capacity)
         pool = LevelPool(levels=levels, route=route[first_ok], episodes=zeros, successes=zeros, cdf=zeros,
-                         flyable=share)
+                         flyable=share, fields=fields)
         return pool.replace(cdf=jnp.cumsum(weights(pool)))
 
     def refresh_pool(pool: LevelPool, key):
@@ -111,7 +121,9 @@ def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature:
             out = jnp.argsort(learnability(pool) + noise)[:refresh]
         levels, ok, route, share = candidates(k_new, refresh)
         put = lambda old, new: old.at[out].set(jnp.where(_expand(ok, new), new, old[out]))  # noqa: E731
+        levels, fields = levels
         fresh = pool.replace(levels=jax.tree.map(put, pool.levels, levels), route=put(pool.route, route),
+                             fields=None if fields is None else put(pool.fields, fields),
                              episodes=put(pool.episodes, jnp.zeros(refresh)),
                              successes=put(pool.successes, jnp.zeros(refresh)), flyable=share)
         metrics = {"levels_learnability": jnp.mean(learnability(pool)),
@@ -131,7 +143,16 @@ def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature:
         return pool.replace(episodes=pool.episodes.at[indices].add(done),
                             successes=pool.successes.at[indices].add(done * success.astype(jnp.float32)))
 
-    return Curriculum(init=init, refresh=refresh_pool, sample=sample, take=take, record=record)
+    def to_region(pool: LevelPool, indices, water, positions):
+        """Route length (m) from each position to the goal's region (water or air) of its level: one value
+        per env read from the kept fields (never a whole field gathered); inf off the route or the grid."""
+        cell, inside = flyability.nearest_cell(positions)
+        medium = jnp.where(water, 0, 1)   # fields[0]: to the water region (A-W), fields[1]: to the air region
+        value = pool.fields[indices, medium, cell[:, 0], cell[:, 1], cell[:, 2]].astype(jnp.float32)
+        return jnp.where(inside, value, jnp.inf)
+
+    return Curriculum(init=init, refresh=refresh_pool, sample=sample, take=take, record=record,
+                      to_region=to_region)
 
 
 def _expand(flag, x):

@@ -157,6 +157,27 @@ def _straight_line(seeds: jax.Array) -> jax.Array:
 def check(layout: layouts.Layout, p: EnvParams) -> Route:
     """Both trips of `layout` (module doc): a wavefront from the water cells (A-W) and one from the air
     cells (W-A), read at the other region's cells."""
+    return check_with_fields(layout, p)[0]
+
+
+def nearest_cell(point: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """(the grid index (..., 3) int32 of the cell nearest each world point (..., 3), clipped to the grid;
+    whether the point lies inside the grid)."""
+    idx = jnp.round((point - _ORIGIN) / GRID_STEP).astype(jnp.int32)
+    inside = jnp.all((idx >= 0) & (idx < jnp.asarray(GRID_SHAPE)), -1)
+    return jnp.clip(idx, 0, jnp.asarray(GRID_SHAPE) - 1), inside
+
+
+def field_at(field: jax.Array, point: jax.Array) -> jax.Array:
+    """The value of a field (X, Y, Z) at the cell nearest a world point (3,); inf outside the grid."""
+    idx, inside = nearest_cell(point)
+    return jnp.where(inside, field[idx[0], idx[1], idx[2]].astype(jnp.float32), jnp.inf)
+
+
+def check_with_fields(layout: layouts.Layout, p: EnvParams) -> tuple[Route, jax.Array]:
+    """(`check`'s Route, the two distance fields (2, X, Y, Z)): route length (m) from every free cell to
+    the water region's cells (A-W's goals) and to the air region's (W-A's); the trainer's route reward
+    reads them (docrl_jax/envs/curriculum.py)."""
     obstacle_gap, floor_gap = _solid_gaps(layout)
     free = _free(layout, p, obstacle_gap, floor_gap)
     air, water = (_region(layout, p, m, free, obstacle_gap) for m in (0, 1))
@@ -174,7 +195,7 @@ def check(layout: layouts.Layout, p: EnvParams) -> Route:
                  length=jnp.where(flyable, per_cell(fields), inf),
                  longest=jnp.where(flyable, jnp.max(reach, (1, 2, 3)), inf),
                  straight=jnp.where(has_cells, per_cell(straight), inf),
-                 start_cells=n_start.astype(jnp.int32))
+                 start_cells=n_start.astype(jnp.int32)), fields
 
 
 def route_path(field, start, max_points: int = 400) -> jax.Array:

@@ -104,7 +104,8 @@ def make_trainer(config: Config) -> Trainer:
     if config.levels.sampler != "env":   # a level pool (docrl_jax/envs/curriculum.py)
         from docrl_jax.envs.curriculum import make_curriculum
         lv = config.levels
-        pool = make_curriculum(env, lv.sampler, lv.capacity, lv.refresh, lv.temperature, lv.uniform_mix)
+        pool = make_curriculum(env, lv.sampler, lv.capacity, lv.refresh, lv.temperature, lv.uniform_mix,
+                               keep_fields=lv.route_reward > 0)
     lanes = evaluation.alongside   # None, or the evaluation's env lanes after the n training envs
     train_rows = (lambda x: x[:n]) if lanes else (lambda x: x)  # noqa: E731
 
@@ -174,6 +175,8 @@ def make_trainer(config: Config) -> Trainer:
             if lanes:
                 evals = lanes.count(evals, jax.tree.map(lambda x: x[n:], env_state))
             reward, done, info = jax.tree.map(train_rows, (env_state.reward, env_state.done, env_state.info))
+            if pool and config.levels.route_reward:
+                reward = reward + _route_progress(pool, rs, info["position"], config.levels.route_reward, n)
             step = _buffer_step(obs, action, reward, info["final_obs"], info["terminated"],
                                 info["truncated"], rs.start, carry_in)
             buf = buffer.add(rs.buffer, step)
@@ -235,6 +238,17 @@ def make_trainer(config: Config) -> Trainer:
                    steps_per_chunk=steps_per_chunk, total_env_steps=total, init=init, init_total=init_total, chunk=chunk, train=train,
                    evaluate=evaluation.evaluate, eval_starts=lanes.starts if lanes else None, init_carry=init_carry,
                    memory=memory)
+
+
+def _route_progress(pool, rs: RunnerState, position, scale: float, n: int):
+    """levels.route_reward: scale x the metres this step took off the route to the goal's region of the
+    level (its distance field, which knows the way round walls where the straight line does not); 0 where
+    the step began or ended off the field's free cells."""
+    start = rs.env.sim.data.qpos[:n, :3]        # this step's start (a new episode's first position too)
+    water = rs.env.sim.goal[:n, 2] < 0.0        # the goal this step flew to
+    before = pool.to_region(rs.levels, rs.level, water, start)
+    after = pool.to_region(rs.levels, rs.level, water, position)
+    return jnp.where(jnp.isfinite(before) & jnp.isfinite(after), scale * (before - after), 0.0)
 
 
 def _buffer_step(obs, action, reward, next_obs, terminated, truncated, start, carry) -> dict:

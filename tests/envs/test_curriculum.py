@@ -125,3 +125,20 @@ def test_bad_sampler_settings_are_refused_in_one_line():
         curriculum.make_curriculum(_generator(0.0), "plr", capacity=8, refresh=2)
     with pytest.raises(ValueError, match=r"refresh=9: must be in \[1, capacity=8\]"):
         curriculum.make_curriculum(_generator(0.0), "uniform", capacity=8, refresh=9)
+
+
+def test_route_to_the_goal_region_is_read_per_env_from_the_kept_fields(pool_fns):
+    c = pool_fns["uniform"]
+    pool = c.init(jax.random.PRNGKey(8))
+    shape = flyability.GRID_SHAPE
+    # Field value = level * 100 + medium * 50 + the cell's x index (exact in float16): every read names its source.
+    x_index = jnp.broadcast_to(jnp.arange(shape[0])[:, None, None], shape)
+    fields = (jnp.arange(8)[:, None, None, None, None] * 100 + jnp.arange(2)[None, :, None, None, None] * 50
+              + x_index[None, None]).astype(jnp.float16)
+    pool = pool.replace(fields=fields)
+    x0 = float(flyability.GRID_X[0])
+    positions = jnp.array([[x0, 0.0, 1.0], [x0 + 0.26, 0.0, -1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 40.0]])
+    got = c.to_region(pool, jnp.array([3, 5, 7, 1]), jnp.array([True, False, True, True]), positions)
+    mid = shape[0] // 2                        # x = 0 is the middle cell
+    np.testing.assert_array_equal(got[:3], [300 + 0, 500 + 50 + 1, 700 + mid])
+    assert np.isinf(got[3])                    # above the grid
