@@ -11,12 +11,15 @@ lane() {
   case $1 in
   0) train tanks_s0 "sac_mlp_tanks" --config sac_mlp_tanks --set train.num_seeds=3 --set train.seed=0
      evaluate tanks_s0 "sac_mlp_tanks" $R/runs/tanks_s0 -- $TESTS
-     evaluate old_sac_mlp_generalist "sac_mlp_generalist" $R/old_runs/sac_mlp_gen_s10 -- $OLD_TESTS
-     evaluate old_td3_lstm_generalist "td3_lstm_generalist" $R/old_runs/gen_s13 -- $OLD_TESTS ;;
+     train tanks_route_s0 "sac_mlp_tanks, route reward 2" --config sac_mlp_tanks --set levels.route_reward=2.0 \
+       --set train.num_seeds=3 --set train.seed=0
+     evaluate tanks_route_s0 "sac_mlp_tanks, route reward 2" $R/runs/tanks_route_s0 -- $TESTS
+     evaluate old_sac_mlp_generalist "sac_mlp_generalist" $R/old_runs/sac_mlp_gen_s10 -- $OLD_TESTS ;;
   1) train lstm_tanks_s0 "td3_lstm_tanks" --config td3_lstm_tanks --set train.num_seeds=3 --set train.seed=0
      evaluate lstm_tanks_s0 "td3_lstm_tanks" $R/runs/lstm_tanks_s0 -- $TESTS
      train tanks_uniform_s0 "sac_mlp_tanks, levels uniform" --config sac_mlp_tanks --set levels.sampler=uniform \
        --set train.num_seeds=3 --set train.seed=0
-     evaluate tanks_uniform_s0 "sac_mlp_tanks, levels uniform" $R/runs/tanks_uniform_s0 -- $TESTS ;;
+     evaluate tanks_uniform_s0 "sac_mlp_tanks, levels uniform" $R/runs/tanks_uniform_s0 -- $TESTS
+     evaluate old_td3_lstm_generalist "td3_lstm_generalist" $R/old_runs/gen_s13 -- $OLD_TESTS ;;
   esac
 }
