@@ -27,9 +27,12 @@ HELD_OUT_IDS .. 2**31 - 2 (held-out ones with p.layout_held_out). A structured l
 `-2 - i` (`index_of`), so it never meets a plain layout's (0 .. 2**31 - 2) or -1 (no id);
 `structured_id(index)` reads `i` back.
 
-Measured on the development CPU (2 shared cores) with `python -m docrl_jax.envs.structures`: the share of
-ids flyable both ways (docrl_jax/envs/flyability.py), route length over straight line per family, and the
-cost of `generate` vmapped over 1,024 keys.
+`python -m docrl_jax.envs.structures` prints the share of held-out ids 0..255 flyable both ways
+(docrl_jax/envs/flyability.py), the median route length over straight line per family and the cost of
+`generate` vmapped over 1,024 keys. On the development CPU (2 shared cores, busy): 256 of 256 flyable; route
+/ straight line A-W (W-A) wall 1.22 (1.27), ceiling 1.76 (2.09), room 1.12 (1.18), dead end 1.30 (1.32),
+grove 1.10 (1.09), pipes 1.08 (1.09); 1,024 layouts in 171 ms after a 37 s compile (`layouts.generate`
+alone: 8 ms): every family is computed for every layout, then one is picked.
 """
 
 from __future__ import annotations
