@@ -10,6 +10,13 @@ collisions, out-of-bounds and time-outs per scenario and direction (A-W, W-A):
                     reverse); trial i's key depends on (seed, scenario, direction, i) only.
   held_out_layouts  scenario 0: held-out procedural layout i (`layouts.held_out(i)`, never trained
                     on) for i < N, one A-W and one W-A trip in each (random start, goal, yaw).
+  structured        scenario 0: the first N flyable held-out structured layouts (walls with one
+                    opening, ceilings, rooms, dead ends, groves: `structures.held_out_set(N)`), one
+                    trip each way in each, their starts and goals in each layout's regions.
+  tanks             a tank set (`--tank`, default the packaged gallery; docs/TANKS.md): trip i of each
+                    direction in tank i mod the set's size, from its region of the start medium to
+                    its region of the other (`tank_trials`: the trials of `evaluate --tank`); a row
+                    per direction over the set (tank "all") and one per tank flown.
 
 All trials of one (env settings, direction) are one `jit(vmap(scan))` of the evaluator's rollout. A
 perturbation changes the episode's plant only (`dr_*` parameters: the true vehicle, water, wind,
@@ -18,10 +25,11 @@ perturbation of a scenario runs in one compiled program, that of a "host" env wh
 them all (latency queues as long as the longest delay; dropouts and range noise drawn), and its
 trials are, bit for bit, those of an env built with the perturbation's overrides. The trips start
 from `env.reset(key, layout=...)` of the host env with the media forced (`rollout.reset_states`) and
-run in the same program.
+run in the same program, with the nominal plant and the policy's own vehicle; the layout tests share
+scenario 0's program.
 
 `run_benchmark(methods, cfg)` runs it all and returns one row per (method, seed, test, perturbation,
-magnitude, scenario, direction); `robustness_report` writes the files.
+magnitude, scenario, direction, tank); `robustness_report` writes the files.
 """
 
 from __future__ import annotations
@@ -30,6 +38,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
+
+import numpy as np
 
 from docrl_jax.evaluate import rollout
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW
@@ -90,12 +100,13 @@ ENVELOPE = (
                  "added mass and added inertia in water x magnitude"),
 )
 PERTURBATIONS = {p.name: p for p in ENVELOPE}
-TESTS = ("perturbations", "random_trips", "held_out_layouts")
+TESTS = ("perturbations", "random_trips", "held_out_layouts", "structured", "tanks")
+LAYOUT_TESTS = ("held_out_layouts", "structured", "tanks")   # scenario 0, a layout given per trip
 # (start_water_fraction, goal_water_fraction) of the random and layout trips per direction.
 MEDIA = {"air_to_water": (0.0, 1.0), "water_to_air": (1.0, 0.0)}
 MEDIA_KEYS = ("start_water_fraction", "goal_water_fraction")
 # Trip keys: fold_in(fold_in(fold_in(fold_in(PRNGKey(seed), salt), scenario), direction), trial).
-TRIP_SALT = {"random_trips": 0x7269, "held_out_layouts": 0x6C61}
+TRIP_SALT = {"random_trips": 0x7269, "held_out_layouts": 0x6C61, "structured": 0x7374, "tanks": 0x746B}
 
 
 @dataclass(frozen=True)
@@ -169,9 +180,20 @@ def held_out_layouts(params, num: int):
     return _LAYOUTS[key]
 
 
-def trip_trials(host, sampler, policy, keys, nominal_params, max_steps: int, layouts=None) -> dict:
-    """Trips from `sampler.reset(key, layout)` (the host's env with the media forced), the nominal plant,
-    run by the host's rollout."""
+def structured_layouts(params, num: int):
+    """The first `num` flyable held-out structured layouts of `params` (`structures.held_out_set`),
+    stacked; cached."""
+    key = ("structured", params, int(num))
+    if key not in _LAYOUTS:
+        from docrl_jax.envs import structures
+        _LAYOUTS[key] = structures.held_out_set(int(num), params).layouts
+    return _LAYOUTS[key]
+
+
+def trip_trials(host, sampler, policy, keys, nominal_params, max_steps: int, layouts=None,
+                render: bool = False) -> dict:
+    """Trips from `sampler.reset(key, layout)` (the host's env with the media forced), the plant an env
+    of `nominal_params` draws, run by the host's rollout; `run_from_states`' arrays plus `goals` (N, 3)."""
     import dataclasses
 
     import jax
@@ -180,7 +202,9 @@ def trip_trials(host, sampler, policy, keys, nominal_params, max_steps: int, lay
         raise ValueError("trip_trials: the sampler env differs from the host env in more than the media")
     k_reset, k_policy = jax.vmap(rollout.split_trial_key, out_axes=1)(keys)
     states = rollout.reset_states(sampler, k_reset, layouts, rollout.plants_for(nominal_params, k_reset))
-    return rollout.run_from_states(host, policy, states, k_policy, max_steps)
+    trials = rollout.run_from_states(host, policy, states, k_policy, max_steps, render)
+    trials["goals"] = np.asarray(jax.device_get(states.info["goal"]))
+    return trials
 
 
 @dataclass
@@ -193,26 +217,43 @@ class Method:
     vehicle: dict = field(default_factory=dict)   # its runs' vehicle settings (evaluate.cli.run_vehicle)
 
 
+def trip_layouts(test: str, params, count: int, tank: str | None):
+    """The layouts of the trips of `test` (one per trip, stacked), or None (random trips: the
+    scenario's own tank); with the tank set's names for `tanks`."""
+    from docrl_jax.evaluate import tank_trials
+    if test == "held_out_layouts":
+        return held_out_layouts(params, count), None
+    if test == "structured":
+        return structured_layouts(params, count), None
+    if test == "tanks":
+        names, stack = tank_trials.load(tank, params)
+        return tank_trials.repeat(stack, count), names
+    return None, None
+
+
 def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[dict]:
     """Every test of `cfg` for every seed of every method; one row per (method, seed, test,
-    perturbation, magnitude, scenario, direction): `summarize`'s statistics and the row's keys.
+    perturbation, magnitude, scenario, direction, tank): `summarize`'s statistics and the row's keys
+    (tank: "" but for the tanks test's rows, "all" over the set and one per tank flown).
 
     `cfg`: tests, scenarios, directions, settings (`sweep_settings`), env (overrides under every
-    test, on top of each method's vehicle), trials, layouts, max_steps, seed, which and bba_depth_phase
-    (how the policies load). `report(line)` gets a line per row."""
+    test, on top of each method's vehicle), trials, layouts, tank (the tanks test's set), max_steps,
+    seed, which and bba_depth_phase (how the policies load). `report(line)` gets a line per row."""
+    from docrl_jax.evaluate import tank_trials
     from docrl_jax.evaluate import video
     steps, n = cfg["max_steps"], cfg["trials"]
     settings = cfg["settings"]
     rows = []
 
-    def add(method, seed_index, test, setting, scenario, direction, trials, t0):
+    def add(method, seed_index, test, setting, scenario, direction, trials, t0, tank=""):
         row = {"method": method.label, "seed_index": seed_index, "test": test, "perturbation": setting.perturbation,
                "magnitude": setting.magnitude, "value": setting.value,
                "parameter": PERTURBATIONS[setting.perturbation].param if setting.perturbation in PERTURBATIONS
-               else "", "scenario": scenario, "direction": direction, **summarize(trials),
+               else "", "scenario": scenario, "direction": direction, "tank": tank, **summarize(trials),
                "seconds": round(time.time() - t0, 2)}
         rows.append(row)
         what = f"{setting.perturbation} {setting.magnitude}".strip() if test == "perturbations" else test
+        what += f" {tank}" if tank else ""
         tag = "" if seed_index is None else f" seed {seed_index}"
         report(f"{method.label}{tag} | {what} | scenario {scenario} {SHORT[direction]}: {row['successes']}/"
                f"{row['trials']} success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
@@ -223,7 +264,9 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
         base = rollout.flown_env(method.vehicle, cfg["env"])
         host_kw = host_overrides(base, settings)
         for seed_index, (run, run_seed) in zip(method.seed_indices, method.sources):
-            first_env = rollout.make_eval_env(cfg["scenarios"][0], steps, **host_kw)
+            # The policy is built for the first env the tests fly (the BBA reads its parameters).
+            own = any(t in cfg["tests"] for t in ("perturbations", "random_trips"))
+            first_env = rollout.make_eval_env(cfg["scenarios"][0] if own else 0, steps, **host_kw)
             policy, _ = video.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"])
             if policy.source:
                 report(f"{method.label}: {Path(run).name}: {policy.source}")
@@ -236,15 +279,15 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
                         trials = perturbation_trials(host, policy, scenario, direction, plants_of, n, steps,
                                                      cfg["seed"])
                         add(method, seed_index, "perturbations", setting, scenario, direction, trials, t0)
-            for test in ("random_trips", "held_out_layouts"):
+            for test in TESTS[1:]:
                 if test not in cfg["tests"]:
                     continue
-                scenarios = cfg["scenarios"] if test == "random_trips" else [0]
-                count = n if test == "random_trips" else cfg["layouts"]
+                scenarios = [0] if test in LAYOUT_TESTS else cfg["scenarios"]
+                count = cfg["layouts"] if test in ("held_out_layouts", "structured") else n
                 for scenario in scenarios:
                     host = rollout.make_eval_env(scenario, steps, **host_kw)
                     nominal = rollout.eval_params(scenario, steps, **base)
-                    stack = held_out_layouts(host.params, count) if scenario == 0 else None
+                    stack, names = trip_layouts(test, host.params, count, cfg.get("tank"))
                     for direction in cfg["directions"]:
                         t0 = time.time()
                         start_w, goal_w = MEDIA[direction]
@@ -252,5 +295,12 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
                                                         goal_water_fraction=goal_w)
                         keys = trip_keys(cfg["seed"], test, scenario, direction, count)
                         trials = trip_trials(host, sampler, policy, keys, nominal, steps, stack)
-                        add(method, seed_index, test, trips, scenario, direction, trials, t0)
+                        if names is None:
+                            add(method, seed_index, test, trips, scenario, direction, trials, t0)
+                            continue
+                        add(method, seed_index, test, trips, scenario, direction, trials, t0, tank_trials.ALL)
+                        tank = tank_trials.tank_index(count, len(names))
+                        for i in np.unique(tank):   # the tanks flown (all of them when N >= the set's size)
+                            add(method, seed_index, test, trips, scenario, direction,
+                                tank_trials.subset(trials, tank == i), t0, names[i])
     return rows

@@ -4,6 +4,7 @@ or several policies side by side, and its files (docrl_jax.evaluate.robustness_r
     python -m docrl_jax.robustness --run runs/d --out robustness/d
     python -m docrl_jax.robustness --run runs/d0 runs/d1 runs/d2 --run runs/s --policy bba --out robustness/all
     python -m docrl_jax.robustness --policy bba --quick --perturbations wind_gusts,motor_lag --out robustness/bba
+    python -m docrl_jax.robustness --run runs/d --tests tanks,structured --tank my_tanks/ --out robustness/tanks
     python -m docrl_jax.robustness --list
 
 A method is each `--run` (its run directories are the method's seeds, as for `python -m
@@ -25,13 +26,15 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import cli, robustness, rollout
+from docrl_jax.evaluate import cli, robustness, rollout, tank_trials
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
 from docrl_jax.evaluate.robustness import ENVELOPE, MEDIA_KEYS, PERTURBATIONS, TESTS, Method
 
 TEST_ALIASES = {"perturbations": "perturbations", "sweeps": "perturbations", "random_trips": "random_trips",
-                "random": "random_trips", "held_out_layouts": "held_out_layouts", "layouts": "held_out_layouts"}
+                "random": "random_trips", "held_out_layouts": "held_out_layouts", "layouts": "held_out_layouts",
+                "structured": "structured", "structures": "structured", "tanks": "tanks", "tank": "tanks"}
+DEFAULT_TANK = "gallery"   # the tanks test's set: every packaged tank
 QUICK = {"trials": 10, "layouts": 10}   # --quick: these counts and each perturbation's strongest magnitude
 
 
@@ -43,7 +46,7 @@ def parse_tests(text: str) -> list[str]:
     bad = [v for v in vals if v not in TEST_ALIASES]
     if not vals or bad:
         raise UsageError(f"--tests {text!r}: valid tests are {', '.join(TESTS)} (comma-separated; short: "
-                         "perturbations, random, layouts)")
+                         "perturbations, random, layouts, structures, tank)")
     return [t for t in TESTS if t in {TEST_ALIASES[v] for v in vals}]
 
 
@@ -84,9 +87,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--directions", default="air_to_water,water_to_air",
                    help="comma-separated: air_to_water (A-W), water_to_air (W-A) (default both)")
     p.add_argument("--trials", type=int, default=None,
-                   help="trials per scenario, direction and setting of the perturbations and random trips "
-                        "(default 100)")
-    p.add_argument("--layouts", type=int, default=None, help="held-out layouts, one trip each way (default 1000)")
+                   help="trials per scenario, direction and setting of the perturbations and random trips, and "
+                        "trips each way of the tanks test (default 100)")
+    p.add_argument("--layouts", type=int, default=None,
+                   help="held-out layouts and held-out structured layouts, one trip each way in each (default 1000)")
+    p.add_argument("--tank", metavar="PATH|DIR|NAME",
+                   help=f"the tanks test's set: a tank file, a folder of them, a packaged tank's name or gallery "
+                        f"(default {DEFAULT_TANK}: every packaged tank); --trials trips each way, trip i in tank i "
+                        "mod the set's size")
     p.add_argument("--quick", action="store_true",
                    help=f"a small sweep: {QUICK['trials']} trials, {QUICK['layouts']} layouts and each perturbation's "
                         "strongest magnitude (--trials and --layouts still win)")
@@ -124,22 +132,34 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
            "trials": trials, "layouts": num_layouts, "seed_indices": cli.parse_seed_indices(args.seed_index),
            "perturbations": parse_perturbations(args.perturbations), "max_steps": args.max_steps, "seed": args.seed,
            "which": args.which, "bba_depth_phase": args.bba_depth_phase}
-    cfg["env"] = cli.parse_env_overrides(args.env, [*scenarios, 0] if "held_out_layouts" in tests else scenarios)
+    cfg["env"] = cli.parse_env_overrides(args.env, _scenarios_run(cfg))
     for key in MEDIA_KEYS:
         if key in cfg["env"]:
             raise UsageError(f"--env {key}: set by the benchmark (random and layout trips force the media of each "
                              "direction)")
+    if "tank" in cfg["env"]:
+        raise UsageError("--env tank: the tanks test's set is --tank (the other tests fly their own tanks)")
+    if args.tank is not None and "tanks" not in tests:
+        raise UsageError(f"--tank {args.tank}: only the tanks test flies a tank set; add tanks to --tests")
+    cfg["tank"] = (args.tank or DEFAULT_TANK) if "tanks" in tests else None
     cfg["settings"] = robustness.sweep_settings(cfg["perturbations"], args.quick)
     cfg["methods"] = methods_of(args, cfg["seed_indices"])
     _check_settings(cfg, args.max_steps)
     cfg["out"] = output_dir(args.out)
+    if cfg["tank"] is not None:   # a bad set: one line, before anything compiles
+        cfg["tank_names"] = tank_trials.check(cfg["tank"], rollout.eval_params(0, args.max_steps, **cfg["env"]))
     return cfg
+
+
+def _scenarios_run(cfg: dict) -> list[int]:
+    """The scenarios some test of `cfg` runs in: the layout and tank tests' is 0."""
+    return [*cfg["scenarios"], 0] if any(t in robustness.LAYOUT_TESTS for t in cfg["tests"]) else cfg["scenarios"]
 
 
 def _check_settings(cfg: dict, max_steps: int) -> None:
     """Every env the run builds is valid for every scenario it runs in (e.g. --env against the envelope),
     with each method's vehicle."""
-    scenarios = [*cfg["scenarios"], 0] if "held_out_layouts" in cfg["tests"] else cfg["scenarios"]
+    scenarios = _scenarios_run(cfg)
     for vehicle in {json.dumps(m.vehicle, sort_keys=True): m.vehicle for m in cfg["methods"]}.values():
         base = rollout.flown_env(vehicle, cfg["env"])
         host_kw = robustness.host_overrides(base, cfg["settings"])
@@ -232,6 +252,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         cfg = validate_args(args)
     except (UsageError, RunDirError) as e:
         parser.error(str(e))  # exits with status 2 and the usage line
+    except tank_trials.TankSetError as e:   # a tank file's error: its own line, no usage block
+        parser.exit(2, f"{parser.prog}: error: {e}\n")
     try:
         cfg["out"].mkdir(exist_ok=True)
         return _benchmark(args, cfg, argv)
@@ -255,7 +277,8 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
                     for m in cfg["methods"]],
         "which": args.which if args.run else None, "bba_depth_phase": args.bba_depth_phase if args.policy else None,
         "tests": cfg["tests"], "scenarios": cfg["scenarios"], "directions": cfg["directions"],
-        "trials": cfg["trials"], "layouts": cfg["layouts"], "max_steps": args.max_steps, "seed": args.seed,
+        "trials": cfg["trials"], "layouts": cfg["layouts"], "tank": cfg["tank"], "tank_names": cfg.get("tank_names"),
+        "max_steps": args.max_steps, "seed": args.seed,
         "quick": args.quick, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
         "vehicles": {m.label: m.vehicle for m in cfg["methods"]},
         "host_env_overrides": {m.label: robustness.host_overrides(rollout.flown_env(m.vehicle, cfg["env"]),

@@ -1,8 +1,11 @@
 """The robustness benchmark's outputs (docrl_jax.evaluate.robustness): robustness.csv (one row per
-method, seed, test, perturbation, magnitude, scenario and direction: the outcome counts and the
-success rate), robustness.json (those rows, the rows over seeds and the run's settings: command,
-versions, date), robustness.md (success % per test and magnitude, A-W / W-A) and robustness.png
-(success against magnitude per perturbation, a bar panel for the random trips and held-out layouts).
+method, seed, test, perturbation, magnitude, scenario, direction and tank: the outcome counts and
+the success rate), robustness.json (those rows, the rows over seeds and the run's settings: command,
+versions, date), robustness.md (success % per test and magnitude, A-W / W-A; the tanks test per tank)
+and robustness.png (success against magnitude per perturbation, a bar panel for the trip tests).
+
+The tanks test's rows carry the tank: "all" for its rows over the set (those the summary tables and
+the figure show), a tank's name for its rows per tank (the "Per tank" table); every other row "".
 
 Where a method has several seeds the table and figure show, for each cell, the median over seeds of
 the seed's success rate averaged over the scenarios (every scenario runs the same number of trials).
@@ -22,11 +25,15 @@ import numpy as np
 from docrl_jax.evaluate.tables import SHORT
 
 CSV_FIELDS = ("method", "seed_index", "test", "perturbation", "magnitude", "value", "parameter", "scenario",
-              "direction", "trials", "successes", "collisions", "out_of_bounds", "timeouts", "diverged",
+              "direction", "tank", "trials", "successes", "collisions", "out_of_bounds", "timeouts", "diverged",
               "success_rate", "final_distance_mean", "path_length_all_mean", "time_mean", "seconds")
-GROUP = ("method", "test", "perturbation", "magnitude", "scenario", "direction")
-TEST_TITLES = {"random_trips": "Random trips", "held_out_layouts": "Held-out layouts (scenario 0)"}
-BAR_LABELS = {"random_trips": "random", "held_out_layouts": "layouts"}
+GROUP = ("method", "test", "perturbation", "magnitude", "scenario", "direction", "tank")
+TEST_TITLES = {"random_trips": "Random trips", "held_out_layouts": "Held-out layouts (scenario 0)",
+               "structured": "Held-out structured layouts (scenario 0)", "tanks": "Tanks"}
+BAR_LABELS = {"random_trips": "random", "held_out_layouts": "layouts", "structured": "structured",
+              "tanks": "tanks"}
+SCENARIO_0 = ("held_out_layouts", "structured", "tanks")   # the tests in scenario 0 only
+ALL_TANKS = "all"     # the tank of the tanks test's rows over the whole set
 PACKAGES = ("docrl_jax", "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy", "matplotlib")
 NOMINAL = "nominal"   # the perturbation of the sweep's row without one
 NONE = "none"         # the perturbation of the random and layout trips' rows
@@ -37,7 +44,7 @@ def over_seeds(rows: Sequence[dict]) -> list[dict]:
     median, min and max over seeds, each seed's successes, and the median outcome counts."""
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
-        groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
+        groups.setdefault(tuple(r.get(k, "") for k in GROUP), []).append(r)
     out = []
     for key, rs in groups.items():
         rates = [r["success_rate"] for r in rs]
@@ -64,6 +71,34 @@ def cell_rates(rows: Sequence[dict], per_scenario: bool = False) -> dict[tuple, 
     return {k: statistics.median(float(np.mean(v)) for v in seeds.values()) for k, seeds in per_seed.items()}
 
 
+def per_tank(row: dict) -> bool:
+    """A row of one tank of the tanks test (not the set's)."""
+    return row.get("tank", "") not in ("", ALL_TANKS)
+
+
+def tank_table(rows: Sequence[dict]) -> list[str]:
+    """Markdown lines: success % and trials per tank of the tanks test (A-W / W-A, median over seeds)."""
+    tank_rows = [r for r in rows if per_tank(r)]
+    if not tank_rows:
+        return []
+    dirs = list(dict.fromkeys(r["direction"] for r in tank_rows))
+    methods = list(dict.fromkeys(r["method"] for r in tank_rows))
+    rates = {}
+    for r in tank_rows:
+        rates.setdefault((r["tank"], r["method"], r["direction"]), {})[r["seed_index"]] = r
+    out = ["", "## Per tank\n", f"Tanks test: success % ({' / '.join(SHORT[d] for d in dirs)}) and trials in each tank "
+           "(trial i flies in tank i mod the set's size); median over seeds.\n",
+           "| Tank | Method | Success | Trials |", "|---|---|---|---|"]
+    for tank in dict.fromkeys(r["tank"] for r in tank_rows):
+        for m in methods:
+            cells = [rates.get((tank, m, d), {}) for d in dirs]
+            pct = " / ".join(_pct(statistics.median(r["success_rate"] for r in c.values()) if c else None)
+                             for c in cells)
+            n = " / ".join(str(next(iter(c.values()))["trials"]) if c else "–" for c in cells)
+            out.append(f"| {tank} | {m} | {pct} | {n} |")
+    return out
+
+
 def _lines(rows: Sequence[dict]) -> list[tuple[str, str]]:
     """(test, perturbation) in the order the rows first name them."""
     return list(dict.fromkeys((r["test"], r["perturbation"]) for r in rows))
@@ -88,18 +123,22 @@ def _pct(rate: float | None) -> str:
 
 def markdown(rows: Sequence[dict], meta: dict, envelope: dict) -> str:
     """The summary table (success %, A-W / W-A, averaged over scenarios, median over seeds) and one
-    per scenario; `envelope`: perturbation name -> its `robustness.Perturbation`."""
+    per scenario, and the tanks test per tank; `envelope`: perturbation name -> its `robustness.Perturbation`."""
+    rows, all_rows = [r for r in rows if not per_tank(r)], rows
     rates, by_scen = cell_rates(rows), cell_rates(rows, per_scenario=True)
     methods = list(dict.fromkeys(r["method"] for r in rows))
     seeds = {m: len({r["seed_index"] for r in rows if r["method"] == m}) for m in methods}
     dirs = list(dict.fromkeys(r["direction"] for r in rows))
     lines_ = _lines(rows)
     width = max([len(_magnitudes(rows, t, p)) for t, p in lines_] or [1])
-    scen = sorted({r["scenario"] for r in rows if r["test"] != "held_out_layouts"})
+    scen = sorted({r["scenario"] for r in rows if r["test"] not in SCENARIO_0})
     where = (f"averaged over scenarios {', '.join(map(str, scen))}" if len(scen) > 1
              else f"in scenario {scen[0]}" if scen else "")
-    layouts = f"held-out layouts: scenario 0, {meta['layouts']} layouts" if any(
-        r["test"] == "held_out_layouts" for r in rows) else ""
+    tests = {r["test"] for r in rows}
+    layouts = "; ".join(
+        ([f"held-out layouts: scenario 0, {meta['layouts']} layouts"] if "held_out_layouts" in tests else [])
+        + ([f"structured: {meta['layouts']} layouts"] if "structured" in tests else [])
+        + ([f"tanks: {meta.get('tank')}, {meta['trials']} trials"] if "tanks" in tests else []))
     out = ["# Robustness benchmark\n",
            f"Success % ({' / '.join(SHORT[d] for d in dirs)}) {where}{f' ({layouts})' if layouts else ''}; "
            f"{meta['trials']} trials per scenario, direction and magnitude; median over seeds where a method has "
@@ -118,7 +157,7 @@ def markdown(rows: Sequence[dict], meta: dict, envelope: dict) -> str:
             cells += [""] * (width - len(cells))
             out.append(f"| {_title(test, pert, envelope)} | {name} | " + " | ".join(cells) + " |")
     cols = list(dict.fromkeys((r["scenario"], r["direction"]) for r in sorted(rows, key=lambda r: r["scenario"])))
-    out += ["", "## Per scenario\n", "Success % per scenario (S0: the held-out layouts).\n",
+    out += ["", "## Per scenario\n", "Success % per scenario (S0: procedural tanks, the layout and tank tests).\n",
             "| Test | Magnitude | Method | " + " | ".join(f"S{s} {SHORT[d]}" for s, d in cols) + " |",
             "|---|---|---|" + "---|" * len(cols)]
     for test, pert in lines_:
@@ -127,6 +166,7 @@ def markdown(rows: Sequence[dict], meta: dict, envelope: dict) -> str:
                 cells = [_pct(by_scen.get((m, test, pert, mag, d, s))) if (m, test, pert, mag, d, s) in by_scen
                          else "" for s, d in cols]
                 out.append(f"| {_title(test, pert, envelope)} | {mag or '–'} | {m} | " + " | ".join(cells) + " |")
+    out += tank_table(all_rows)
     return "\n".join(out) + "\n"
 
 
@@ -137,11 +177,12 @@ def plot(rows: Sequence[dict], path: Path, envelope: dict, title: str = "") -> P
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    rows = [r for r in rows if not per_tank(r)]
     rates = cell_rates(rows)
     methods = list(dict.fromkeys(r["method"] for r in rows))
     dirs = list(dict.fromkeys(r["direction"] for r in rows))
     perts = [p for t, p in _lines(rows) if t == "perturbations" and p != NOMINAL]
-    trips = [t for t in ("random_trips", "held_out_layouts") if any(r["test"] == t for r in rows)]
+    trips = [t for t in BAR_LABELS if any(r["test"] == t for r in rows)]
     has_nominal = any(r["test"] == "perturbations" and r["perturbation"] == NOMINAL for r in rows)
     panels = perts + (["trips"] if trips else []) or ([NOMINAL] if has_nominal else [])
     ncols = min(4, max(1, len(panels)))
@@ -158,7 +199,7 @@ def plot(rows: Sequence[dict], path: Path, envelope: dict, title: str = "") -> P
                 ax.bar(np.arange(len(labels)) + (i - (len(methods) - 1) / 2) * width, vals, width,
                        color=colours[m], label=m)
             ax.set_xticks(np.arange(len(labels)), labels, fontsize=8)
-            ax.set_title("Random trips and held-out layouts", fontsize=10)
+            ax.set_title("Trips: " + ", ".join(BAR_LABELS[t] for t in trips), fontsize=10)
         else:
             p = envelope.get(panel)
             points = [("", p.nominal if p else 0.0)] if has_nominal else []

@@ -24,7 +24,8 @@ from docrl_jax.evaluate.protocol import NOMINAL_YAW
 STEPS, TRIALS, LAYOUTS = 40, 2, 2
 TRAINED = Path(__file__).resolve().parents[1] / "data" / "trained"
 ARGV = ["--policy", "bba", "--scenarios", "1", "--trials", str(TRIALS), "--layouts", str(LAYOUTS),
-        "--perturbations", "action_latency", "--quick", "--max-steps", str(STEPS)]
+        "--perturbations", "action_latency", "--quick", "--max-steps", str(STEPS),
+        "--tests", "perturbations,random_trips,held_out_layouts"]   # structured, tanks: test_tank_trials.py
 HOST = {"dr_action_latency": (0, 2)}   # the host env of ARGV's sweep: queues for the 2-step latency
 
 
