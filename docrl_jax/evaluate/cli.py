@@ -4,12 +4,13 @@
     python -m docrl_jax.evaluate --run runs/docrl_d --seed-index 0 --out results/docrl_d
     python -m docrl_jax.evaluate --run runs/td3_seed0 runs/td3_seed1 runs/td3_seed2 --out results/td3  # 3 launches
     python -m docrl_jax.evaluate --curves runs/docrl_d runs/docrl_s --out results/curves
+    python -m docrl_jax.evaluate --run runs/docrl_d --tank gallery --trials 20 --out results/tanks
 
 The protocol itself: `docrl_jax.evaluate.protocol`; the rollout and per-trial metrics: `rollout`;
-statistics, tables and output files: `tables`. This module is the command alone: its arguments,
-their checks (each bad input one line, before anything compiles) and which policies of which runs
-are evaluated; it is a little over the package's ~350-line guide because each of the three inputs
-(--policy, --run, --curves) brings its own checks.
+statistics, tables and output files: `tables`; trials in a tank set (`--tank`): `tank_trials`. This
+module is the command alone: its arguments, their checks (each bad input one line, before anything
+compiles) and which policies of which runs are evaluated; it is over the package's ~350-line guide
+because each of the four inputs (--policy, --run, --curves, --tank) brings its own checks.
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ import yaml
 
 from docrl_jax import runs
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import rollout
+from docrl_jax.evaluate import rollout, tank_trials
+from docrl_jax.evaluate.tank_trials import TankSetError
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, NOMINAL_YAW, SCENARIOS, TrialSpec
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, markdown_table, trial_table, write_outputs
 
@@ -62,7 +64,8 @@ def parse_directions(text: str) -> list[str]:
 
 # Env parameters the evaluator sets itself.
 _EVALUATOR_KEYS = {"terminate_on_arrival": "--max-steps", "max_episode_steps": "--max-steps",
-                   "scenario": "--scenarios"}
+                   "scenario": "--scenarios", "tank": "--tank"}
+_MEDIA_KEYS = ("start_water_fraction", "goal_water_fraction")   # --tank forces them per direction
 
 
 def parse_env_value(text: str) -> Any:
@@ -138,7 +141,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "or each seed's best evaluated policy kept beside it (train.track_best_policy)")
     p.add_argument("--label", help="method name in the tables (default: 'BBA' or the run dir's name)")
     p.add_argument("--trials", type=int, default=100, help="trials per scenario and direction (default 100)")
-    p.add_argument("--scenarios", default="1,2,3", help="comma-separated scenarios (default 1,2,3)")
+    p.add_argument("--scenarios", default=None, help="comma-separated scenarios (default 1,2,3)")
+    p.add_argument("--tank", metavar="PATH|DIR|NAME",
+                   help="instead of the scenarios' paper pairs, trials in a tank set: a tank file, a folder of them, a "
+                        "packaged tank's name, or gallery (every packaged tank; docs/TANKS.md). --trials per "
+                        "direction, trial i in tank i mod the set's size, from a random start in the start medium's "
+                        "region to a random goal in the other's, random yaw; a table per tank (printed, tanks.csv)")
     p.add_argument("--directions", default="air_to_water,water_to_air",
                    help="comma-separated: air_to_water (A-W), water_to_air (W-A) (default both)")
     p.add_argument("--max-steps", type=int, default=500, help="step limit of a trial (default 500, the paper's)")
@@ -173,10 +181,19 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         raise UsageError(f"--max-steps {args.max_steps}: must be a positive integer")
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
-    scenarios = parse_scenarios(args.scenarios)
+    if args.tank is not None and args.scenarios is not None:
+        raise UsageError(f"--tank {args.tank} and --scenarios {args.scenarios}: a tank set's trials replace the "
+                         "scenarios' (they fly in scenario 0); give one of them")
+    scenarios = [0] if args.tank is not None else parse_scenarios(args.scenarios or "1,2,3")
     cfg = {"scenarios": scenarios, "directions": parse_directions(args.directions),
            "env": parse_env_overrides(args.env, scenarios), "seed_indices": parse_seed_indices(args.seed_index),
            "out": output_dir(args)}
+    cfg["tank"] = args.tank
+    if args.tank is not None:
+        bad = [k for k in _MEDIA_KEYS if k in cfg["env"]]
+        if bad:
+            raise UsageError(f"--env {bad[0]}: set by --tank (A-W starts in air and ends under water, W-A the reverse)")
+        cfg["tank_names"] = tank_trials.check(args.tank, rollout.eval_params(0, args.max_steps, **cfg["env"]))
     if args.curves and cfg["out"] is None:
         raise UsageError("--curves writes learning_curves.png: give --out DIR")
     for run in args.run or []:
@@ -269,12 +286,13 @@ def policy_sources(args, seed_indices: list[int] | None) -> list[tuple[str, int]
             for s in (seed_indices if seed_indices is not None else range(run_num_seeds(run)))]
 
 
-def load_policy_for(args, env_params, seed_index: int, run: str | None = None) -> tuple[Any, str]:
+def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple[Any, str]:
     """(policy, label) for --policy or for one seed of the run directory `run`. Several run directories
     are labelled by their config's name, one by its folder's name."""
     if args.policy is not None:
-        from docrl_jax.baselines import bba
-        return bba.make_bba(env_params, depth_phase=args.bba_depth_phase), args.label or bba.label(args.bba_depth_phase)
+        from docrl_jax.evaluate.video import policy_for   # one BBA per env: the renderer's and benchmark's too
+        policy, label = policy_for(env, None, 0, "final", args.bba_depth_phase)
+        return policy, args.label or label
     policy = runs.load_policy(run, seed_index=seed_index, which=args.which)
     print(f"{Path(run).name}: {policy.source}", flush=True)
     name = config_name(run) if len(args.run) > 1 else Path(run).resolve().name
@@ -288,6 +306,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         cfg = validate_args(args)
     except (UsageError, RunDirError) as e:
         parser.error(str(e))  # exits with status 2 and the usage line
+    except TankSetError as e:   # a tank file's error: its own line, no usage block
+        parser.exit(2, f"{parser.prog}: error: {e}\n")
     try:
         return _evaluate(args, cfg, parser, argv)
     except OSError as e:  # an output folder that cannot be written: one line, as the other bad inputs
@@ -317,7 +337,7 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
     # Each run's agent settings: runs with the same ones share their networks (and compiled rollout).
     agents = {run: json.dumps(_run_config(run).get("agent"), sort_keys=True) for run in args.run or []}
     vehicles = {seed_index: run_vehicle(run) for seed_index, (run, _) in zip(seed_indices, sources)}
-    rows, trial_rows = [], []
+    rows, trial_rows, tank_rows = [], [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
             "run": args.run, "which": args.which if args.run else None, "policy": args.policy,
             "seed_indices": seed_indices, "policy_sources": {},
@@ -327,26 +347,32 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
             "vehicles": {str(i): vehicle for i, vehicle in vehicles.items()},
             "trial_spec": asdict(TrialSpec()), "nominal_yaw": NOMINAL_YAW,
             "bba_depth_phase": args.bba_depth_phase if args.policy else None,
+            "tank": args.tank, "tank_names": cfg.get("tank_names"),
             "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()]}
     policies: dict = {}
     first_with_nets: dict = {}   # agent settings -> the first policy loaded with them
     t_start = time.time()
 
-    def report(row, trials, env, start, goal):
+    def report(row, trials, env, start, goal, stack=None):
         seed_index = row["seed_index"]
         tag = "" if seed_index is None else f" seed {seed_index}"
         fresh = row["compile_s"] is not None
-        print(f"scenario {row['scenario']} {SHORT[row['direction']]} {row['method']}{tag}: {row['successes']}/"
+        where = f"tanks {args.tank}" if args.tank else f"scenario {row['scenario']}"
+        print(f"{where} {SHORT[row['direction']]} {row['method']}{tag}: {row['successes']}/"
               f"{row['trials']} success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
               f"{row['timeouts']} time-outs ({row['compile_s'] if fresh else row['run_s']:.1f} s"
               f"{' incl. compile' if fresh else ''})", flush=True)
         if out_dir is None:
             return
         stem = f"s{row['scenario']}_{row['direction']}" + ("" if seed_index is None else f"_seed{seed_index}")
+        extra = {"tank": trials["tank"], "tank_names": np.asarray(cfg["tank_names"])} if args.tank else {}
         np.savez_compressed(out_dir / f"trajectories_{stem}.npz", positions=trials["positions"].astype(np.float32),
                             steps=trials["steps"], outcome=trials["outcome"], start=np.asarray(start),
-                            goal=np.asarray(goal))
-        if args.figures > 0:
+                            goal=np.asarray(goal), **extra)
+        if args.figures > 0 and args.tank:
+            tank_trials.plot_flown(out_dir / f"trajectory_{stem}", stack, cfg["tank_names"], trials,
+                                   f"{row['method']}{tag}, {SHORT[row['direction']]}", args.figures)
+        elif args.figures > 0:
             from docrl_jax.evaluate import plotting
             plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"], trials["outcome"],
                                        start, goal, out_dir / f"trajectory_{stem}.png",
@@ -359,7 +385,7 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
             env = rollout.make_eval_env(scenario, args.max_steps, **env_kw)
             if seed_index not in policies:
                 try:
-                    policy, method = load_policy_for(args, env.params, run_seed, run)
+                    policy, method = load_policy_for(args, env, run_seed, run)
                 except RunDirError as e:
                     parser.error(str(e))
                 # Seeds with the same agent settings share their networks: keep the first one's
@@ -373,6 +399,17 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
                 if policy.source:
                     meta["policy_sources"][str(seed_index)] = policy.source
             policy, method = policies[seed_index]
+            if args.tank is not None:
+                def tank_report(row, trials, per_tank, names, stack):
+                    report(row, trials, env, trials["start_positions"], trials["goals"], stack)
+                for row, trials, per_tank in tank_trials.evaluate_policy(
+                        policy, method, args.tank, cfg["directions"], args.trials, args.max_steps, args.seed, env_kw,
+                        seed_index, tank_report):
+                    rows.append(row)
+                    tank_rows += per_tank
+                    trial_rows += [{**t, "seed_index": seed_index, "tank": cfg["tank_names"][i]} for t, i in
+                                   zip(trial_table(method, 0, row["direction"], trials), trials["tank"])]
+                continue
             for row, trials in rollout.evaluate_policy(policy, method, [scenario], cfg["directions"], args.trials,
                                                        args.max_steps, args.seed, env_kw, seed_index, report):
                 rows.append(row)
@@ -380,12 +417,15 @@ def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[s
                                for t in trial_table(method, scenario, row["direction"], trials)]
     meta["wall_time_s"] = round(time.time() - t_start, 2)
     aggs = aggregate_seeds(rows) if args.run is not None else []
-    print(markdown_table(rows, seed_rows=aggs))
+    print(markdown_table(rows, paper=args.tank is None, seed_rows=aggs))
+    if args.tank is not None:
+        print(tank_trials.markdown(tank_rows, args.tank))
     if out_dir is None:
         print(f"nothing written: pass --out DIR to keep the tables, trials and figures ({meta['wall_time_s']} s)")
         return 0
     write_outputs(out_dir, rows, trial_rows, meta, aggs)
-    print(f"wrote {out_dir}/results.md, results.csv, results.json, trials.csv ({meta['wall_time_s']} s)")
+    tanks = ", " + ", ".join(p.name for p in tank_trials.write(out_dir, tank_rows, args.tank)) if args.tank else ""
+    print(f"wrote {out_dir}/results.md, results.csv, results.json, trials.csv{tanks} ({meta['wall_time_s']} s)")
     return 0
 
 
