@@ -4,12 +4,15 @@
     python -m docrl_jax.render --policy bba --scenario 3 --direction air_to_water --trials 3 --out bba.gif
     python -m docrl_jax.render --run runs/d --direction water_to_air --trials 1 --of 100 --out first.gif
     python -m docrl_jax.render --run runs/d --direction random --trials 4 --camera follow --out random.mp4
+    python -m docrl_jax.render --policy bba --tank gallery --direction air_to_water --trials 3 --out tanks.gif
 
 The trials are the evaluator's (docrl_jax.evaluate.rollout and protocol: the same env settings, seeds
 and rollout, which here also records the pose and the ranges of every step): `--trials K` draws the K
 trials that `python -m docrl_jax.evaluate --trials K` runs for that scenario and direction, and
 `--of N` the first K of the N trials of `evaluate --trials N`. `random`: starts and goals drawn from
-the env's reset distribution, trial i from a key of (--seed, scenario, i). Trials are drawn one after
+the env's reset distribution, trial i from a key of (--seed, scenario, i). `--tank PATH|DIR|NAME`: the
+trials of `python -m docrl_jax.evaluate --tank` (trial i in tank i mod the set's size; any tank file,
+drawn in its own tank: docrl_jax.evaluate.tank_trials). Trials are drawn one after
 another, each ending on its outcome for a second. The frames are `envs.rendering.Renderer`'s (cameras,
 water, goal, range fan, overlay). MP4 needs imageio and imageio-ffmpeg (`pip install -e '.[render]'`);
 a GIF is written by Pillow, which the package always has. Bad input is one line and exit status 2,
@@ -35,6 +38,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
+from docrl_jax.evaluate.tank_trials import TankSetError
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
 from docrl_jax.evaluate.tables import SHORT
 
@@ -211,7 +215,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed-index", type=int, default=0, help="which seed of --run (default 0)")
     p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES, help="with --run: final (default) or best")
     p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
-    p.add_argument("--scenario", type=int, default=2, help="1, 2 or 3 (default 2, the training scenario)")
+    p.add_argument("--scenario", type=int, default=None, help="1, 2 or 3 (default 2, the training scenario)")
+    p.add_argument("--tank", metavar="PATH|DIR|NAME",
+                   help="instead of a scenario, the trials of evaluate --tank in a tank set: a tank file, a folder "
+                        "of them, a packaged tank's name or gallery (trial i in tank i mod the set's size)")
     p.add_argument("--direction", default="water_to_air",
                    help="air_to_water (A-W), water_to_air (W-A, default) or random (starts and goals of the env's "
                         "reset distribution)")
@@ -247,15 +254,22 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         raise UsageError(f"--policy {args.policy!r}: unknown policy; valid choices: bba (or --run RUN_DIR)")
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
-    if args.scenario not in SCENARIOS:
+    if args.tank is not None and args.scenario is not None:
+        raise UsageError(f"--tank {args.tank} and --scenario {args.scenario}: a tank set's trials fly in scenario 0; "
+                         "give one of them")
+    scenario = 0 if args.tank is not None else 2 if args.scenario is None else args.scenario
+    if scenario not in (0, *SCENARIOS):
         raise UsageError(f"--scenario {args.scenario}: valid scenarios are {', '.join(map(str, SCENARIOS))}")
     direction = parse_direction(args.direction)
+    if args.tank is not None and direction == "random":
+        raise UsageError("--direction random: with --tank, give air_to_water (A-W) or water_to_air (W-A)")
     for flag, value in (("--trials", args.trials), ("--max-steps", args.max_steps), ("--every", args.every)):
         if value <= 0:
             raise UsageError(f"{flag} {value}: must be a positive integer")
     if args.of is not None:
-        if direction == "random":
-            raise UsageError("--of: random trials do not depend on their number; leave --of out")
+        if direction == "random" or args.tank is not None:
+            raise UsageError(f"--of: {'tank' if args.tank else 'random'} trials do not depend on their number; "
+                             "leave --of out")
         if args.of < args.trials:
             raise UsageError(f"--of {args.of}: must be at least --trials {args.trials}")
     if not args.fps > 0 or not math.isfinite(args.fps):
@@ -281,11 +295,16 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         except ImportError as e:
             raise UsageError(f"--out {args.out}: {e}, or write a .gif") from None
     try:
-        env = parse_env_overrides(args.env, [args.scenario])
+        env = parse_env_overrides(args.env, [scenario])
     except ValueError as e:   # the evaluator's UsageError
         raise UsageError(str(e)) from None
+    env = rollout.flown_env(run_vehicle(args.run), env)
+    cfg = {"direction": direction, "env": env, "out": out, "scenario": scenario}
+    if args.tank is not None:
+        from docrl_jax.evaluate.tank_trials import check
+        cfg["tank_names"] = check(args.tank, rollout.eval_params(0, args.max_steps, **env))
     check_writable(out)
-    return {"direction": direction, "env": rollout.flown_env(run_vehicle(args.run), env), "out": out}
+    return cfg
 
 
 def check_writable(path: Path) -> None:
@@ -321,6 +340,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         cfg = validate_args(args)
     except (UsageError, RunDirError) as e:
         parser.error(str(e))  # exits with status 2 and the usage line
+    except TankSetError as e:   # a tank file's error: its own line, no usage block
+        parser.exit(2, f"{parser.prog}: error: {e}\n")
     try:
         return _render(args, cfg)
     except (RenderError, RunDirError) as e:
@@ -332,26 +353,48 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _render(args, cfg: dict) -> int:
+    import contextlib
+
+    import jax
+
+    from docrl_jax.envs import layouts
     from docrl_jax.envs.rendering import Renderer
-    from docrl_jax.evaluate import rollout
+    from docrl_jax.evaluate import rollout, tank_trials
     t0 = time.time()
-    env = rollout.make_eval_env(args.scenario, args.max_steps, **cfg["env"])
-    # The GL context first: a machine that cannot render says so before the rollout compiles.
-    with Renderer(env.mj_model, env.params, args.width, args.height, args.camera, fan=not args.no_fan) as renderer:
+    scenario, direction = cfg["scenario"], cfg["direction"]
+    env = rollout.make_eval_env(scenario, args.max_steps, **cfg["env"])
+    # Each trial's scene: the scenario's, or its tank's (trial i in tank i mod the set's size).
+    if args.tank is not None:
+        names, tank_set = tank_trials.load(args.tank, env.params)
+        scene = tank_trials.tank_index(args.trials, len(names))
+        where = [f"tank {names[i]}" for i in scene]
+        models = {i: layouts.mj_model(jax.tree.map(lambda x: np.asarray(x)[i], tank_set)) for i in set(scene)}
+    else:
+        scene, where, models = [0] * args.trials, [f"scenario {scenario}"] * args.trials, {0: env.mj_model}
+    # The GL contexts first: a machine that cannot render says so before the rollout compiles.
+    with contextlib.ExitStack() as contexts:
+        renderers = {i: contexts.enter_context(Renderer(m, env.params, args.width, args.height, args.camera,
+                                                        fan=not args.no_fan)) for i, m in models.items()}
         policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase)
         if getattr(policy, "source", ""):
             print(f"{label}: {policy.source}", flush=True)
-        direction = cfg["direction"]
-        trials = trials_to_render(env, policy, args.scenario, direction, args.trials, args.of, args.max_steps,
-                                  args.seed)
+        if args.tank is not None:
+            trials = tank_trials.run(policy, tank_set, direction, args.trials, args.max_steps, args.seed, cfg["env"],
+                                     render=True)
+        else:
+            trials = trials_to_render(env, policy, scenario, direction, args.trials, args.of, args.max_steps,
+                                      args.seed)
         name = SHORT.get(direction, direction)
         of = f" of {args.of}" if args.of else ""
         for i in range(args.trials):
-            print(f"scenario {args.scenario} {name} {label} trial {i + 1}/{args.trials}{of}: "
+            print(f"{where[i]} {name} {label} trial {i + 1}/{args.trials}{of}: "
                   f"{outcome_line(trials, i, env.control_dt)}", flush=True)
         t1 = time.time()
-        title = f"{label}  scenario {args.scenario} {name}  trial {{trial}}/{{trials}}{of}"
-        frames, durations = render_frames(renderer, tracks(trials, env.control_dt, title), args.every, args.fps)
+        parts = []
+        for i, track in enumerate(tracks(trials, env.control_dt)):
+            track.title = f"{label}  {where[i]} {name}  trial {i + 1}/{args.trials}{of}"
+            parts.append(render_frames(renderers[scene[i]], [track], args.every, args.fps))
+        frames, durations = np.concatenate([f for f, _ in parts]), [d for _, ds in parts for d in ds]
         t2 = time.time()
     written = write_video(cfg["out"], frames, durations, args.fps)
     views = 2 if args.camera == "both" else 1
