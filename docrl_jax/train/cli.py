@@ -1,6 +1,7 @@
 """`python -m docrl_jax.train`: trains a config into a run directory, or resumes one.
 
     python -m docrl_jax.train --config td3_lstm [--set section.key=value ...] [--run-dir DIR]
+    python -m docrl_jax.train --config td3_lstm --tank gallery      (train in tank files: docs/TANKS.md)
     python -m docrl_jax.train --run-dir DIR --resume [--set train.total_env_steps=...]
     srun ... python -m docrl_jax.train --distributed --config ... --run-dir SHARED_DIR   (docs/TRAINER.md)
 
@@ -28,7 +29,7 @@ from pathlib import Path
 from rich.syntax import Syntax
 
 from docrl_jax import sharding
-from docrl_jax.config import Config, load_config, packaged_config_names, to_yaml
+from docrl_jax.config import Config, env_kwargs, load_config, packaged_config_names, parse_overrides, to_yaml
 from docrl_jax.errors import ConfigError, RunDirError
 from docrl_jax.train import program_store
 from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
@@ -42,6 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", help=f"packaged config name ({', '.join(packaged_config_names())}) or a YAML path")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one config value (YAML scalar); repeatable")
+    p.add_argument("--tank", metavar="PATH|DIR|NAME",
+                   help="train in a tank set: sets env.scenario 0 and env.tank to a tank file, a folder of them, a "
+                        "packaged tank's name, or gallery (every packaged tank; docs/TANKS.md); every tank is "
+                        "checked before anything compiles")
     p.add_argument("--run-dir", help="output directory (default runs/<name>-<UTC time>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its newest intact "
                                                          "checkpoint")
@@ -89,6 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         cache = enable_compile_cache(args.compile_cache)
         if not distributed:  # (several processes have no program store)
             program_store.prefetch(config)  # the stored programs load while the imports below run
+        check_tank(config)
         from docrl_jax.train.run import check_run_dir, run  # MuJoCo and MJX, Flax, Orbax: seconds
         if not args.resume:  # (a resume's directory was checked before its config was read)
             check_run_dir(run_dir, resume=False)
@@ -105,15 +111,29 @@ def main(argv: list[str] | None = None) -> int:
                launch_time=launch)
 
 
+def check_tank(config: Config) -> None:
+    """A run's tank set (env.tank) loads for its env, every rule of docs/TANKS.md checked; its one-line
+    `tanks.TankError` as a ConfigError. Nothing to do without env.tank."""
+    kwargs = env_kwargs(config)
+    if kwargs.get("tank") is None:
+        return
+    from docrl_jax.envs import make_params, tanks
+    try:
+        tanks.load_set(kwargs["tank"], make_params(config.env.scenario, **kwargs))
+    except tanks.TankError as e:
+        raise ConfigError(str(e)) from None
+
+
 def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
     """The config and run directory of the command line. A new run's directory is checked later
     (docrl_jax.train.run.check_run_dir), after the stored programs have begun to load."""
     if args.resume:
         if not args.run_dir:
             raise RunDirError("--resume needs --run-dir DIR")
-        if args.config:
-            raise ConfigError("--resume takes the config from the run directory's config.yaml; drop --config "
-                              "(use --set to change e.g. train.total_env_steps)")
+        if args.config or args.tank:
+            raise ConfigError(f"--resume takes the config from the run directory's config.yaml; drop "
+                              f"{'--config' if args.config else '--tank'} (use --set to change e.g. "
+                              "train.total_env_steps)")
         from docrl_jax import runs
         from docrl_jax.train.run import check_run_dir
         run_dir = Path(args.run_dir)
@@ -121,7 +141,12 @@ def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
         return load_config(run_dir / runs.CONFIG_FILE, args.set, notes=notes), run_dir
     if not args.config:
         raise ConfigError("--config is required (a packaged name such as td3_lstm, or a YAML path)")
-    config = load_config(args.config, args.set, notes=notes)
+    overrides = parse_overrides(args.set)
+    if args.tank is not None:
+        # A file or folder by its absolute path, so that a resume from elsewhere finds it; a name as given.
+        spec = Path(args.tank).expanduser()
+        overrides.update({"env.scenario": 0, "env.tank": str(spec.resolve()) if spec.exists() else args.tank})
+    config = load_config(args.config, overrides, notes=notes)
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.name}-{stamp}"
     return config, run_dir
