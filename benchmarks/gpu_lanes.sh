@@ -2,7 +2,8 @@
 # Runs a round of training and evaluation launches on the GPUs of one host, one lane per GPU, and
 # brings back what has ended by a deadline, so a device call's time limit never loses a finished run.
 #   bash benchmarks/gpu_lanes.sh ROUND [DEADLINE_S]     (on the GPU machine, from the checkout's root)
-# ROUND is a bash file (benchmarks/rounds/*.sh) that sets LANES (e.g. "0 1 2 3") and defines
+# ROUND is a bash file (benchmarks/rounds/*.sh) that sets LANES (e.g. "0 1 2 3"; lane N runs on GPU N mod
+# the host's GPUs, several lanes on one GPU sharing its memory) and defines
 # `lane N`, which calls, one after the other:
 #   train NAME LABEL TRAIN_ARGS...   python -m docrl_jax.train TRAIN_ARGS into runs/NAME, packed policy-only
 #   evaluate NAME LABEL RUN_DIRS... -- ROBUSTNESS_ARGS...   python -m docrl_jax.robustness into eval/NAME
@@ -13,16 +14,20 @@
 set -u
 round=$1 deadline=${2:-540}
 R=/tmp/round_$(basename "$round" .sh); mkdir -p $R/runs $R/eval $R/pack
+source "$round"
 if [ ! -e $R/started ]; then
   touch $R/started
   python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl
   rm -rf $R/wt && mkdir $R/wt && cp -r docrl_jax assets configs benchmarks $R/wt/
   [ -d .jobs/old_runs ] && cp -r .jobs/old_runs $R/old_runs
   nvidia-smi --query-gpu=name,driver_version --format=csv > $R/pack/gpu.txt
-  python3 -c "import jax, jaxlib, mujoco; print('jax', jax.__version__, 'jaxlib', jaxlib.__version__, 'mujoco', mujoco.__version__)" \
+  PYTHONPATH=/tmp/site python3 -c "import jax, jaxlib, mujoco; print('jax', jax.__version__, 'jaxlib', jaxlib.__version__, 'mujoco', mujoco.__version__)" \
     >> $R/pack/gpu.txt 2>&1
   cat > $R/lane.sh <<LANE
-R=$R; cd \$R/wt; export PYTHONPATH=/tmp/site:\$R/wt CUDA_VISIBLE_DEVICES=\$1 MUJOCO_GL=egl
+R=$R; cd \$R/wt; export PYTHONPATH=/tmp/site:\$R/wt
+# Lane N runs on GPU N mod the GPUs; lanes sharing a GPU split its memory (XLA would take 75 % each).
+gpus=\$(nvidia-smi -L | wc -l); export CUDA_VISIBLE_DEVICES=\$(( \$1 % gpus ))
+[ \$(echo $LANES | wc -w) -gt \$gpus ] && export XLA_PYTHON_CLIENT_MEM_FRACTION=0.45
 train() { name=\$1 label=\$2; shift 2
   echo "\$name train start \$(date +%s)" >> \$R/times
   python3 -m docrl_jax.train "\$@" --set name=\$name --no-progress --run-dir \$R/runs/\$name > \$R/\$name.log 2>&1
@@ -38,10 +43,8 @@ source $PWD/$round
 lane \$1
 touch \$R/lane_done_\$1
 LANE
-  source "$round"
   for g in $LANES; do setsid nohup bash $R/lane.sh $g >/dev/null 2>&1 & done
 fi
-source "$round"
 t0=$(date +%s)
 alldone() { for g in $LANES; do [ -e $R/lane_done_$g ] || return 1; done; }
 while [ $(( $(date +%s) - t0 )) -lt $deadline ] && ! alldone; do sleep 3; done
@@ -49,8 +52,7 @@ cat $R/pack/gpu.txt $R/times 2>/dev/null
 for f in $R/*.log; do echo "== $(basename $f): $(tail -n 2 $f | cut -c1-250)"; done
 for f in $R/eval/*/robustness.md; do echo "== $f"; grep -E "^\| " $f | head -30; done
 cp $R/times $R/pack/ 2>/dev/null
-# $OUT takes 8 files: the launches' and evaluations' archives, bundled when there are more.
-n=$(ls $R/pack | wc -l)
-if [ "$n" -le 8 ]; then cp $R/pack/* $OUT/; else tar cf $OUT/pack.tar -C $R pack; fi
+# One archive of the launches' and evaluations' packs ($OUT takes 8 files).
+tar cf $OUT/$(basename $R).tar -C $R pack
 ls -la $OUT
 alldone && echo ALL_DONE
