@@ -34,6 +34,7 @@ from flax import struct
 from docrl_jax.envs import flyability
 
 SAMPLERS = ("uniform", "learnability")
+CHECK_BATCH = 32   # candidate levels checked at once
 
 
 @struct.dataclass
@@ -64,27 +65,34 @@ def learnability(pool: LevelPool) -> jax.Array:
 
 
 def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature: float = 0.5,
-                    uniform_mix: float = 0.3, check: Callable = flyability.check,
+                    uniform_mix: float = 0.3, check: Callable | None = None,
                     keep_fields: bool = False) -> Curriculum:
     """The pool's pure functions for `env` (an HUAUVEnv of procedural tanks; its `draw_layout` and params).
     `sampler`: 'uniform' or 'learnability' (module doc). `check(level, params) -> flyability.Route`
-    decides which candidates may enter. `keep_fields`: the pool keeps each level's distance fields
+    decides which candidates may enter (default: flyability's, without the straight-line distances). `keep_fields`: the pool keeps each level's distance fields
     (`flyability.check_with_fields`, then the check) for `to_region`."""
     if sampler not in SAMPLERS:
         raise ValueError(f"sampler={sampler!r}: valid samplers are {', '.join(SAMPLERS)}")
     if not 1 <= refresh <= capacity:
         raise ValueError(f"refresh={refresh}: must be in [1, capacity={capacity}]")
     p = env.params
+    if check is None:   # the flyability check without its straight-line distances (the pool needs none)
+        check = lambda level, params: flyability.check_with_fields(level, params, straight=False)[0]  # noqa: E731
 
     def candidates(key, n: int):
         """(n levels drawn by the env's generator, flyable (n,), route (n,)), flyable ones first."""
         keys = jax.random.split(key, 2 * n)
         levels = jax.vmap(env.draw_layout)(keys)
+        # Checked CHECK_BATCH levels at a time: a check's grids of hundreds of levels at once take
+        # gigabytes, and a smaller program compiles far sooner.
         if keep_fields:
-            route, fields = jax.vmap(lambda lv: flyability.check_with_fields(lv, p))(levels)
-            levels = (levels, fields.astype(jnp.float16))
+            def one(lv):
+                route, fields = flyability.check_with_fields(lv, p, straight=False)
+                return route, fields.astype(jnp.float16)
+            route, fields = jax.lax.map(one, levels, batch_size=CHECK_BATCH)
+            levels = (levels, fields)
         else:
-            route = jax.vmap(lambda lv: check(lv, p))(levels)
+            route = jax.lax.map(lambda lv: check(lv, p), levels, batch_size=CHECK_BATCH)
             levels = (levels, None)
         ok = jnp.all(route.flyable, -1)
         order = jnp.argsort(~ok, stable=True)[:n]

@@ -46,9 +46,7 @@ GRID_Z = np.arange(-17, 20, dtype=np.float32) * GRID_STEP    # cell centres alon
 GRID_SHAPE = (GRID_X.size, GRID_X.size, GRID_Z.size)         # (39, 39, 37)
 MAX_SWEEPS = 1000                                            # cap of `distance_field`'s wavefront
 
-_CENTRES = np.stack(np.meshgrid(GRID_X, GRID_X, GRID_Z, indexing="ij"), -1)   # (X, Y, Z, 3)
-_WALL_GAP = geometry.TANK_HALF_WIDTH - np.maximum(np.abs(_CENTRES[..., 0]), np.abs(_CENTRES[..., 1]))
-_ORIGIN = _CENTRES[0, 0, 0]
+_ORIGIN = np.array([GRID_X[0], GRID_X[0], GRID_Z[0]], np.float32)
 _OFFSETS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                      if (i, j, k) != (0, 0, 0)], np.int32)                   # (26, 3)
 _WEIGHTS = (GRID_STEP * np.sqrt(np.abs(_OFFSETS).sum(-1))).astype(np.float32)  # step, step*sqrt2, step*sqrt3
@@ -74,7 +72,15 @@ def clearance(p: EnvParams) -> float:
 
 
 def _centres() -> jax.Array:
-    return jnp.asarray(_CENTRES)
+    """(X, Y, Z, 3) cell centres, built inside the program from the axes (a 56k-cell constant would be
+    embedded in, or on newer JAX passed to, every program that checks a level)."""
+    x, z = jnp.asarray(GRID_X), jnp.asarray(GRID_Z)
+    return jnp.stack(jnp.meshgrid(x, x, z, indexing="ij"), -1)
+
+
+def _wall_gap(centres: jax.Array) -> jax.Array:
+    """Distance (X, Y, Z) from every cell centre to the nearest tank wall."""
+    return geometry.TANK_HALF_WIDTH - jnp.maximum(jnp.abs(centres[..., 0]), jnp.abs(centres[..., 1]))
 
 
 def _solid_gaps(layout: layouts.Layout):
@@ -88,7 +94,7 @@ def _solid_gaps(layout: layouts.Layout):
 def _free(layout: layouts.Layout, p: EnvParams, obstacle_gap, floor_gap) -> jax.Array:
     z = _centres()[..., 2]
     in_bounds = (z >= layout.z_min) & (z <= p.bounds[1])
-    nearest = jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), jnp.asarray(_WALL_GAP))
+    nearest = jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), _wall_gap(_centres()))
     return in_bounds & (nearest >= clearance(p))
 
 
@@ -174,16 +180,17 @@ def field_at(field: jax.Array, point: jax.Array) -> jax.Array:
     return jnp.where(inside, field[idx[0], idx[1], idx[2]].astype(jnp.float32), jnp.inf)
 
 
-def check_with_fields(layout: layouts.Layout, p: EnvParams) -> tuple[Route, jax.Array]:
+def check_with_fields(layout: layouts.Layout, p: EnvParams, straight: bool = True) -> tuple[Route, jax.Array]:
     """(`check`'s Route, the two distance fields (2, X, Y, Z)): route length (m) from every free cell to
     the water region's cells (A-W's goals) and to the air region's (W-A's); the trainer's route reward
-    reads them (docrl_jax/envs/curriculum.py)."""
+    reads them (docrl_jax/envs/curriculum.py). `straight=False` leaves Route.straight NaN: the exact
+    straight-line field is most of the program a level pool compiles and it needs none."""
     obstacle_gap, floor_gap = _solid_gaps(layout)
     free = _free(layout, p, obstacle_gap, floor_gap)
     air, water = (_region(layout, p, m, free, obstacle_gap) for m in (0, 1))
     starts, goals = jnp.stack([air, water]), jnp.stack([water, air])
     fields = jax.vmap(distance_field, (None, 0))(free, goals)
-    straight = jax.vmap(_straight_line)(goals)
+    straight = jax.vmap(_straight_line)(goals) if straight else jnp.full(goals.shape, jnp.nan)
 
     n_start = jnp.sum(starts, (1, 2, 3))
     has_cells = (n_start > 0) & (jnp.sum(goals, (1, 2, 3)) > 0)

@@ -250,6 +250,10 @@ def save(store: Path, name: str, compiled: jax.stages.Compiled) -> bool:
     one). Returns False when the program cannot be serialised or the folder is not writable: the
     store only saves time, so its failures never stop a run."""
     tmp = None
+    if getattr(getattr(compiled, "_params", None), "const_args", ()):
+        # Newer JAX passes large constants to a program as hidden arguments, which a serialised executable
+        # loses: loaded, it would be called without them ("compiled for N inputs but called with M").
+        return False
     try:
         payload, in_tree, out_tree = serialize_executable.serialize(compiled)
         store.mkdir(parents=True, exist_ok=True)
