@@ -196,7 +196,7 @@ def test_bare_name_and_path_resolve_to_the_same_config(tmp_path):
     assert load_config(str(copy)) == load_config("td3_lstm")
     with pytest.raises(ConfigError, match="does not exist"):
         load_config(str(tmp_path / "missing.yaml"))
-    with pytest.raises(ConfigError, match=r"packaged configs: \['ddpg_mlp', 'ddpg_mlp_paper', 'sac_lstm', .*'sac_mlp_generalist', .*'td3_lstm', 'td3_lstm_generalist', 'td3_lstm_paper'\]"):
+    with pytest.raises(ConfigError, match=r"packaged configs: \['ddpg_mlp', 'ddpg_mlp_paper', 'sac_lstm', .*'sac_mlp_generalist', .*'td3_lstm', 'td3_lstm_generalist', 'td3_lstm_paper', 'td3_lstm_tanks'\]"):
         load_config("td4_lstm")
 
 

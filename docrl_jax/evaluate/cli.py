@@ -65,7 +65,6 @@ def parse_directions(text: str) -> list[str]:
 # Env parameters the evaluator sets itself.
 _EVALUATOR_KEYS = {"terminate_on_arrival": "--max-steps", "max_episode_steps": "--max-steps",
                    "scenario": "--scenarios", "tank": "--tank"}
-_MEDIA_KEYS = ("start_water_fraction", "goal_water_fraction")   # --tank forces them per direction
 
 
 def parse_env_value(text: str) -> Any:
@@ -190,7 +189,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
            "out": output_dir(args)}
     cfg["tank"] = args.tank
     if args.tank is not None:
-        bad = [k for k in _MEDIA_KEYS if k in cfg["env"]]
+        bad = [k for k in rollout.MEDIA_KEYS if k in cfg["env"]]   # --tank forces them per direction
         if bad:
             raise UsageError(f"--env {bad[0]}: set by --tank (A-W starts in air and ends under water, W-A the reverse)")
         cfg["tank_names"] = tank_trials.check(args.tank, rollout.eval_params(0, args.max_steps, **cfg["env"]))
@@ -290,7 +289,7 @@ def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple
     """(policy, label) for --policy or for one seed of the run directory `run`. Several run directories
     are labelled by their config's name, one by its folder's name."""
     if args.policy is not None:
-        from docrl_jax.evaluate.video import policy_for   # one BBA per env: the renderer's and benchmark's too
+        from docrl_jax.evaluate.rollout import policy_for   # one BBA per env: the renderer's and benchmark's too
         policy, label = policy_for(env, None, 0, "final", args.bba_depth_phase)
         return policy, args.label or label
     policy = runs.load_policy(run, seed_index=seed_index, which=args.which)

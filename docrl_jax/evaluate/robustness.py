@@ -42,7 +42,9 @@ from typing import Sequence
 import numpy as np
 
 from docrl_jax.evaluate import rollout
-from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW
+# The trips' media, keys and runner live in rollout, where the tank trials fly them too.
+from docrl_jax.evaluate.rollout import MEDIA, trip_keys, trip_trials
+from docrl_jax.evaluate.protocol import NOMINAL_YAW
 from docrl_jax.evaluate.robustness_report import NOMINAL, NONE
 from docrl_jax.evaluate.tables import SHORT, summarize
 
@@ -102,11 +104,6 @@ ENVELOPE = (
 PERTURBATIONS = {p.name: p for p in ENVELOPE}
 TESTS = ("perturbations", "random_trips", "held_out_layouts", "structured", "tanks")
 LAYOUT_TESTS = ("held_out_layouts", "structured", "tanks")   # scenario 0, a layout given per trip
-# (start_water_fraction, goal_water_fraction) of the random and layout trips per direction.
-MEDIA = {"air_to_water": (0.0, 1.0), "water_to_air": (1.0, 0.0)}
-MEDIA_KEYS = ("start_water_fraction", "goal_water_fraction")
-# Trip keys: fold_in(fold_in(fold_in(fold_in(PRNGKey(seed), salt), scenario), direction), trial).
-TRIP_SALT = {"random_trips": 0x7269, "held_out_layouts": 0x6C61, "structured": 0x7374, "tanks": 0x746B}
 
 
 @dataclass(frozen=True)
@@ -156,16 +153,6 @@ def perturbation_trials(host, policy, scenario: int, direction: str, plants_of, 
                               max_steps, NOMINAL_YAW[direction], plants_of=plants_of)
 
 
-def trip_keys(seed: int, test: str, scenario: int, direction: str, num_trials: int):
-    """(N, 2) keys of the random or layout trips: trial i's depends on (seed, test, scenario, direction,
-    i) only, not on N or the method."""
-    import jax
-    import jax.numpy as jnp
-    base = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), TRIP_SALT[test]), scenario)
-    base = jax.random.fold_in(base, DIRECTIONS.index(direction))
-    return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_trials))
-
-
 _LAYOUTS: dict = {}
 
 
@@ -190,23 +177,6 @@ def structured_layouts(params, num: int):
     return _LAYOUTS[key]
 
 
-def trip_trials(host, sampler, policy, keys, nominal_params, max_steps: int, layouts=None,
-                render: bool = False) -> dict:
-    """Trips from `sampler.reset(key, layout)` (the host's env with the media forced), the plant an env
-    of `nominal_params` draws, run by the host's rollout; `run_from_states`' arrays plus `goals` (N, 3)."""
-    import dataclasses
-
-    import jax
-    media = {k: getattr(host.params, k) for k in MEDIA_KEYS}
-    if dataclasses.replace(sampler.params, **media) != host.params:   # its states would not be the host's
-        raise ValueError("trip_trials: the sampler env differs from the host env in more than the media")
-    k_reset, k_policy = jax.vmap(rollout.split_trial_key, out_axes=1)(keys)
-    states = rollout.reset_states(sampler, k_reset, layouts, rollout.plants_for(nominal_params, k_reset))
-    trials = rollout.run_from_states(host, policy, states, k_policy, max_steps, render)
-    trials["goals"] = np.asarray(jax.device_get(states.info["goal"]))
-    return trials
-
-
 @dataclass
 class Method:
     """A policy to benchmark: a run group (its run directories' seeds) or the BBA."""
@@ -220,14 +190,14 @@ class Method:
 def trip_layouts(test: str, params, count: int, tank: str | None):
     """The layouts of the trips of `test` (one per trip, stacked), or None (random trips: the
     scenario's own tank); with the tank set's names for `tanks`."""
-    from docrl_jax.evaluate import tank_trials
+    from docrl_jax.evaluate import tank_sets
     if test == "held_out_layouts":
         return held_out_layouts(params, count), None
     if test == "structured":
         return structured_layouts(params, count), None
     if test == "tanks":
-        names, stack = tank_trials.load(tank, params)
-        return tank_trials.repeat(stack, count), names
+        names, stack = tank_sets.load(tank, params)
+        return tank_sets.repeat(stack, count), names
     return None, None
 
 
@@ -239,8 +209,7 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
     `cfg`: tests, scenarios, directions, settings (`sweep_settings`), env (overrides under every
     test, on top of each method's vehicle), trials, layouts, tank (the tanks test's set), max_steps,
     seed, which and bba_depth_phase (how the policies load). `report(line)` gets a line per row."""
-    from docrl_jax.evaluate import tank_trials
-    from docrl_jax.evaluate import video
+    from docrl_jax.evaluate import tank_sets
     steps, n = cfg["max_steps"], cfg["trials"]
     settings = cfg["settings"]
     rows = []
@@ -267,7 +236,7 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
             # The policy is built for the first env the tests fly (the BBA reads its parameters).
             own = any(t in cfg["tests"] for t in ("perturbations", "random_trips"))
             first_env = rollout.make_eval_env(cfg["scenarios"][0] if own else 0, steps, **host_kw)
-            policy, _ = video.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"])
+            policy, _ = rollout.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"])
             if policy.source:
                 report(f"{method.label}: {Path(run).name}: {policy.source}")
             for scenario in cfg["scenarios"] if "perturbations" in cfg["tests"] else ():
@@ -298,9 +267,9 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
                         if names is None:
                             add(method, seed_index, test, trips, scenario, direction, trials, t0)
                             continue
-                        add(method, seed_index, test, trips, scenario, direction, trials, t0, tank_trials.ALL)
-                        tank = tank_trials.tank_index(count, len(names))
+                        add(method, seed_index, test, trips, scenario, direction, trials, t0, tank_sets.ALL)
+                        tank = tank_sets.tank_index(count, len(names))
                         for i in np.unique(tank):   # the tanks flown (all of them when N >= the set's size)
                             add(method, seed_index, test, trips, scenario, direction,
-                                tank_trials.subset(trials, tank == i), t0, names[i])
+                                tank_sets.subset(trials, tank == i), t0, names[i])
     return rows

@@ -29,7 +29,8 @@ from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax.evaluate import cli, robustness, rollout, tank_trials
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
-from docrl_jax.evaluate.robustness import ENVELOPE, MEDIA_KEYS, PERTURBATIONS, TESTS, Method
+from docrl_jax.evaluate.robustness import ENVELOPE, PERTURBATIONS, TESTS, Method
+from docrl_jax.evaluate.rollout import MEDIA_KEYS
 
 TEST_ALIASES = {"perturbations": "perturbations", "sweeps": "perturbations", "random_trips": "random_trips",
                 "random": "random_trips", "held_out_layouts": "held_out_layouts", "layouts": "held_out_layouts",

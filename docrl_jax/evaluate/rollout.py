@@ -18,7 +18,9 @@ freezes once a trial is done, so per-step records past the end repeat the final 
 from __future__ import annotations
 
 import time
-from typing import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -312,3 +314,62 @@ def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = S
                 on_result(row, trials, env, start, goal)
             results.append((row, trials))
     return results
+
+
+# ------------------------------------------------------------------ trips: the robustness benchmark's and the tank trials'
+# (start_water_fraction, goal_water_fraction) of the random and layout trips per direction.
+MEDIA = {"air_to_water": (0.0, 1.0), "water_to_air": (1.0, 0.0)}
+MEDIA_KEYS = ("start_water_fraction", "goal_water_fraction")
+# Trip keys: fold_in(fold_in(fold_in(fold_in(PRNGKey(seed), salt), scenario), direction), trial).
+TRIP_SALT = {"random_trips": 0x7269, "held_out_layouts": 0x6C61, "structured": 0x7374, "tanks": 0x746B}
+
+
+def trip_keys(seed: int, test: str, scenario: int, direction: str, num_trials: int):
+    """(N, 2) keys of the random or layout trips: trial i's depends on (seed, test, scenario, direction,
+    i) only, not on N or the method."""
+    import jax
+    import jax.numpy as jnp
+    base = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), TRIP_SALT[test]), scenario)
+    base = jax.random.fold_in(base, DIRECTIONS.index(direction))
+    return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_trials))
+
+
+def trip_trials(host, sampler, policy, keys, nominal_params, max_steps: int, layouts=None,
+                render: bool = False) -> dict:
+    """Trips from `sampler.reset(key, layout)` (the host's env with the media forced), the plant an env
+    of `nominal_params` draws, run by the host's rollout; `run_from_states`' arrays plus `goals` (N, 3)."""
+    import dataclasses
+
+    import jax
+    media = {k: getattr(host.params, k) for k in MEDIA_KEYS}
+    if dataclasses.replace(sampler.params, **media) != host.params:   # its states would not be the host's
+        raise ValueError("trip_trials: the sampler env differs from the host env in more than the media")
+    k_reset, k_policy = jax.vmap(split_trial_key, out_axes=1)(keys)
+    states = reset_states(sampler, k_reset, layouts, plants_for(nominal_params, k_reset))
+    trials = run_from_states(host, policy, states, k_policy, max_steps, render)
+    trials["goals"] = np.asarray(jax.device_get(states.info["goal"]))
+    return trials
+
+
+# ------------------------------------------------------------------ the policies the commands fly
+_SHARED: dict = {}   # settings -> the first policy loaded with them
+
+
+def _shared(policy, settings) -> Any:
+    """Policies of the same settings get the first one's functions, so a process that draws several
+    (or draws again) compiles their rollout once (it is cached per policy function)."""
+    first = _SHARED.setdefault(settings, policy)
+    return policy if first is policy else replace(first, params=policy.params, source=policy.source,
+                                                  name=policy.name)
+
+
+def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "final",
+               bba_depth_phase: str = "after"):
+    """(policy, method label): one seed of a run directory, or the BBA baseline (run None)."""
+    if run is None:
+        from docrl_jax.baselines import bba
+        return (_shared(bba.make_bba(env.params, depth_phase=bba_depth_phase), ("bba", id(env), bba_depth_phase)),
+                bba.label(bba_depth_phase))
+    from docrl_jax import runs
+    policy = runs.load_policy(run, seed_index=seed_index, which=which)
+    return _shared(policy, ("run", runs.read_config(run).agent)), Path(run).resolve().name

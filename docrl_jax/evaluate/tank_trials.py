@@ -6,9 +6,9 @@ benchmark's `tanks` test:
   * it starts at a random point of the start medium's region and heads for a random point of the
     other medium's (A-W: from the tank's `air` region to its `water` region; W-A the reverse), at
     least `goal_clearance` from every solid, with a uniform yaw: `env.reset(key, layout=tank)` of the
-    evaluation env with the media forced (`robustness.MEDIA`), scenario 0;
+    evaluation env with the media forced (`rollout.MEDIA`), scenario 0;
   * the plant is the one the evaluation env's parameters draw (nominal unless --env sets `dr_*`);
-  * trial i's key depends on (seed, direction, i) only (`robustness.trip_keys(seed, "tanks", 0, ...)`),
+  * trial i's key depends on (seed, direction, i) only (`rollout.trip_keys(seed, "tanks", 0, ...)`),
     so the three commands fly the very same trials, and a longer run's first trials are a shorter one's.
 
 The env itself knows nothing of the set (its `tank` parameter stays None): the tanks are data given to
@@ -24,47 +24,9 @@ import numpy as np
 
 from docrl_jax.evaluate.tables import SHORT, summarize
 
-TEST = "tanks"          # the trip-key salt's name (robustness.TRIP_SALT), shared with the benchmark's test
-ALL = "all"             # the tank column of a row over the whole set
-
-
-class TankSetError(ValueError):
-    """A bad --tank: the tank set's own one-line error (`tanks.TankError`); the commands print it without
-    their usage block."""
-
-
-def check(spec: str, params) -> list[str]:
-    """The names of the tank set `spec`, loaded for `params` as the trials will load it (every rule of
-    docs/TANKS.md checked, before anything compiles); TankSetError with the set's one line."""
-    from docrl_jax.envs.tanks import TankError
-    try:
-        return load(spec, params)[0]
-    except TankError as e:
-        raise TankSetError(str(e)) from None
-
-
-def load(spec: str, params) -> tuple[list[str], object]:
-    """(names, layouts stacked over the set) of a tank file, a folder of them, a packaged tank's name or
-    "gallery", for the env parameters `params` (scenario 0; `tanks.load_set` caches it). Raises
-    `tanks.TankError` (one line). Tanks that share a name are told apart by their file's name."""
-    from docrl_jax.envs import tanks
-    names = list(tanks.names(spec))
-    files = tanks.files(spec)
-    names = [f"{n} ({f.name})" if names.count(n) > 1 else n for n, f in zip(names, files)]
-    return names, tanks.load_set(spec, params)
-
-
-def tank_index(num_trials: int, num_tanks: int) -> np.ndarray:
-    """The tank of each trial: trial i flies in tank i mod K."""
-    return np.arange(num_trials) % num_tanks
-
-
-def repeat(stack, num_trials: int):
-    """The set's stacked layouts repeated to one per trial (`tank_index`)."""
-    import jax
-    num_tanks = int(np.shape(stack.index)[0])
-    idx = tank_index(num_trials, num_tanks)
-    return jax.tree.map(lambda x: x[idx], stack)
+# The set's helpers live in tank_sets, below the robustness benchmark, which reads them too; the commands
+# take them from here.
+from docrl_jax.evaluate.tank_sets import ALL, TEST, TankSetError, check, load, repeat, subset, tank_index  # noqa: F401
 
 
 def run(policy, stack, direction: str, num_trials: int, max_steps: int, seed: int, env_kw: dict,
@@ -73,12 +35,12 @@ def run(policy, stack, direction: str, num_trials: int, max_steps: int, seed: in
     evaluation env of scenario 0 with the overrides `env_kw` (`rollout.make_eval_env`): the arrays of
     `rollout.run_trials` plus `tank` (N,) (each trial's index in the set) and `goals` (N, 3); with
     `render`, the renderer's records too."""
-    from docrl_jax.evaluate import robustness, rollout
+    from docrl_jax.evaluate import rollout
     host = rollout.make_eval_env(0, max_steps, **env_kw)
-    start_w, goal_w = robustness.MEDIA[direction]
+    start_w, goal_w = rollout.MEDIA[direction]
     sampler = rollout.make_eval_env(0, max_steps, **env_kw, start_water_fraction=start_w, goal_water_fraction=goal_w)
-    keys = robustness.trip_keys(seed, TEST, 0, direction, num_trials)
-    trials = robustness.trip_trials(host, sampler, policy, keys, host.params, max_steps, repeat(stack, num_trials),
+    keys = rollout.trip_keys(seed, TEST, 0, direction, num_trials)
+    trials = rollout.trip_trials(host, sampler, policy, keys, host.params, max_steps, repeat(stack, num_trials),
                                     render=render)
     trials["tank"] = tank_index(num_trials, int(np.shape(stack.index)[0]))
     return trials
@@ -108,11 +70,6 @@ def evaluate_policy(policy, method: str, spec: str, directions: Sequence[str], n
             on_result(row, trials, tank_rows, names, stack)
         out.append((row, trials, tank_rows))
     return out
-
-
-def subset(trials: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, np.ndarray]:
-    """The per-trial arrays of `trials` (leading axis N) at `mask`."""
-    return {k: v[mask] for k, v in trials.items() if np.ndim(v) and len(v) == len(mask)}
 
 
 def per_tank(names: Sequence[str], trials: dict[str, np.ndarray], row: dict) -> list[dict]:

@@ -31,15 +31,15 @@ import os
 import sys
 import time
 import warnings
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
-from docrl_jax.evaluate.tank_trials import TankSetError
+from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
+from docrl_jax.evaluate.rollout import policy_for
 from docrl_jax.evaluate.tables import SHORT
 
 SUFFIXES = (".mp4", ".gif")
@@ -65,30 +65,6 @@ def imageio_for(suffix: str):
         raise ImportError(f"writing {suffix} needs imageio and imageio-ffmpeg ({e.name or 'imageio'} is missing): "
                           f"{INSTALL}") from None
     return iio
-
-
-# ------------------------------------------------------------------ policies
-_SHARED: dict = {}   # settings -> the first policy loaded with them
-
-
-def _shared(policy, settings) -> Any:
-    """Policies of the same settings get the first one's functions, so a process that draws several
-    (or draws again) compiles their rollout once (it is cached per policy function)."""
-    first = _SHARED.setdefault(settings, policy)
-    return policy if first is policy else replace(first, params=policy.params, source=policy.source,
-                                                  name=policy.name)
-
-
-def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "final",
-               bba_depth_phase: str = "after"):
-    """(policy, method label): one seed of a run directory, or the BBA baseline (run None)."""
-    if run is None:
-        from docrl_jax.baselines import bba
-        return (_shared(bba.make_bba(env.params, depth_phase=bba_depth_phase), ("bba", id(env), bba_depth_phase)),
-                bba.label(bba_depth_phase))
-    from docrl_jax import runs
-    policy = runs.load_policy(run, seed_index=seed_index, which=which)
-    return _shared(policy, ("run", runs.read_config(run).agent)), Path(run).resolve().name
 
 
 # ------------------------------------------------------------------ trials
@@ -301,7 +277,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     env = rollout.flown_env(run_vehicle(args.run), env)
     cfg = {"direction": direction, "env": env, "out": out, "scenario": scenario}
     if args.tank is not None:
-        from docrl_jax.evaluate.tank_trials import check
+        from docrl_jax.evaluate.tank_sets import check
         cfg["tank_names"] = check(args.tank, rollout.eval_params(0, args.max_steps, **env))
     check_writable(out)
     return cfg
