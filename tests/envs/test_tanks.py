@@ -220,33 +220,60 @@ def test_make_tank_resets_and_steps_in_the_files_regions(tank_env):
     assert media == {0, 1}
 
 
-def test_rays_match_mj_ray_on_a_loaded_tank(tank_env):
-    env, layout, (reset, _, _), cast = tank_env
+def _rays_against_mj_ray(cast, data, layout, qpos) -> tuple[float, int]:
+    """(largest |range - mj_ray's| over the fan of every pose in `qpos` (N, 7) in `layout`, beams that hit
+    one of the layout's box slots): `cast` is the env's vmapped `_cast`, `data` an env state's MJX data."""
     model = layouts.mj_model(jax.device_get(layout))
-    data = mujoco.MjData(model)
+    mj_data = mujoco.MjData(model)
     body = model.body("huauv").id
-    qpos = np.asarray(reset.sim.data.qpos)
     rots = []
     for q in qpos:
-        data.qpos[:7] = q[:7]
-        mujoco.mj_forward(model, data)
-        rots.append(data.xmat[body].reshape(3, 3).copy())
+        mj_data.qpos[:7] = q[:7]
+        mujoco.mj_forward(model, mj_data)
+        rots.append(mj_data.xmat[body].reshape(3, 3).copy())
     underwater = qpos[:, 2] < 0.0
-    ours = np.asarray(cast(reset.sim.data, layout, jnp.asarray(qpos[:, :3]), jnp.asarray(np.stack(rots)),
-                           jnp.asarray(underwater)))
+    batch = jax.tree.map(lambda x: jnp.broadcast_to(x[0] if x.ndim and x.shape[0] == len(qpos) else x,
+                                                    (len(qpos),) + (x.shape[1:] if x.ndim and x.shape[0] == len(qpos)
+                                                                    else x.shape)), data)
+    ours = np.asarray(cast(batch, layout, jnp.asarray(qpos[:, :3]), jnp.asarray(np.stack(rots)), jnp.asarray(underwater)))
     worst, hits = 0.0, 0
     for i, q in enumerate(qpos):
-        data.qpos[:7] = q[:7]
-        mujoco.mj_forward(model, data)
+        mj_data.qpos[:7] = q[:7]
+        mujoco.mj_forward(model, mj_data)
         fov, max_range = (90.0, 20.0) if underwater[i] else (270.0, 10.0)
         for j, a in enumerate(sensors.beam_angles(fov)):
             geom = np.zeros(1, np.int32)
-            dist = mujoco.mj_ray(model, data, q[:3], rots[i] @ np.array([np.cos(a), np.sin(a), 0.0]),
+            dist = mujoco.mj_ray(model, mj_data, q[:3], rots[i] @ np.array([np.cos(a), np.sin(a), 0.0]),
                                  np.array(sensors.RAY_GEOMGROUP, np.uint8), 1, body, geom)
             worst = max(worst, abs(ours[i, j] - (max_range if dist < 0 else min(dist, max_range))))
-            hits += dist >= 0 and model.geom(int(geom[0])).name.startswith("slot_box")
+            hits += dist >= 0 and model.geom(int(geom[0])).name.startswith("slot_")
+    return worst, hits
+
+
+def test_rays_match_mj_ray_on_a_loaded_tank(tank_env):
+    env, layout, (reset, _, _), cast = tank_env
+    worst, hits = _rays_against_mj_ray(cast, reset.sim.data, layout, np.asarray(reset.sim.data.qpos))
     assert worst < 1e-3, worst
     assert hits > 40   # the beams meet the file's boxes, not only the tank's walls
+
+
+@pytest.mark.parametrize("name", ["ceiling_one_hole", "pipe_grid", "room_door_water"])
+def test_rays_match_mj_ray_in_gallery_tanks(tank_env, params, name):
+    env, _, (reset, _, _), cast = tank_env
+    layout = tanks.load(tanks.packaged_dir() / f"{name}.yaml", params)
+    rng = np.random.default_rng(0)
+    regions = np.asarray(layout.regions)
+    points = np.concatenate([rng.uniform(regions[m, 0], regions[m, 1], (6, 3)) for m in (0, 1)])
+    # Random yaw and a pitch of up to 35 degrees, so the fans sweep the ceilings and pipes above and below.
+    quats = []
+    for yaw, pitch in zip(rng.uniform(-np.pi, np.pi, len(points)), rng.uniform(-0.6, 0.6, len(points))):
+        q = np.zeros(4)
+        mujoco.mju_mulQuat(q, np.array([np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]),
+                           np.array([np.cos(pitch / 2), 0, np.sin(pitch / 2), 0]))
+        quats.append(q)
+    worst, hits = _rays_against_mj_ray(cast, reset.sim.data, layout, np.concatenate([points, quats], -1))
+    assert worst < 1e-3, worst
+    assert hits > 10   # the gallery tank's own solids are seen (boxes and the pipes' capsules)
 
 
 def test_hull_touching_a_loaded_box_collides(tank_env):
