@@ -1,0 +1,244 @@
+"""Is every trial of the gallery's and the structured set's evaluation flyable by the vehicle itself? The
+privileged route-follower (docrl_jax/baselines/route.py: it knows the tank and flies down the distance field
+to the goal) flies the very trials of the robustness benchmark's `tanks` and `structured` tests (same trip
+keys, same starts, goals, plants; nominal evaluation env, 500 steps) and counts arrivals per tank and
+family, both ways, with what ended each failure.
+
+    python benchmarks/route_follower.py --out benchmarks/results/cpu/route_follower
+    python benchmarks/route_follower.py --trials 35 --layouts 10     # a quick look
+
+Writes tanks.csv and structured.csv (a row per tank or layout family and direction), failures.csv (every
+trial that did not arrive: where it ended, the route left, the nearest solid) and summary.md.
+
+The Policy API shares its params over the trials of a rollout (`rollout.make_rollout`), and this follower's
+params are a field per trial; so the trials run in this file's scan, the rollout's own (the same env.step,
+a finished trial frozen, the metrics of `rollout.trial_metrics`), mapped over (params, state) pairs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from docrl_jax.baselines import route
+from docrl_jax.envs import flyability, geometry, layouts
+from docrl_jax.evaluate import robustness, rollout, tank_trials
+from docrl_jax.evaluate.tables import SHORT, summarize
+
+DIRECTIONS = ("air_to_water", "water_to_air")
+OUTCOME_NAMES = ("arrived", "collision", "out of bounds", "time-out", "diverged")
+
+
+def plans_of(stack, which, goals, p, crowding: float, batch: int = 25) -> dict:
+    """The follower's params (`route.plan`) of each trial: the free cells and gaps of each layout of
+    `stack` once, then trial i's field to goals[i] in layout which[i], `batch` at a time."""
+    cells = jax.lax.map(lambda l: (flyability.free_cells(l, p), route.cell_gaps(l)), stack, batch_size=batch)
+    one = lambda a: route.plan_cells(cells[0][a[0]], cells[1][a[0]], p, a[1], crowding)  # noqa: E731
+    return jax.lax.map(one, (which, goals), batch_size=batch)
+
+
+def route_length(field, start) -> jax.Array:
+    """Length (m) of the route down `field` from `start` (`flyability.route_path`); inf off the free cells."""
+    path = flyability.route_path(field, start, 300)
+    length = jnp.sum(jnp.linalg.norm(jnp.diff(path, axis=0), axis=-1))
+    return jnp.where(jnp.isfinite(flyability.field_at(field, start)), length, jnp.inf)
+
+
+def make_runner(env, policy, max_steps: int):
+    """jit(vmap) over trials of (params, initial state) -> the rollout's records and the diagnosis."""
+    walls = env.walls
+
+    def episode(params, state0):
+        def body(c, k):
+            state, pcarry, done = c
+            new_pcarry, action = policy.act(params, pcarry, state.obs, state.info, k)
+            new_state = env.step(state, action)
+            keep = lambda new, old: jnp.where(done, old, new)  # noqa: E731
+            rec = {"position": keep(new_state.info["position"], state.info["position"]),
+                   "underwater_before": state.info["underwater"], "taken": ~done,
+                   "reward": jnp.where(done, 0.0, new_state.reward),
+                   "min_range": jnp.where(done, jnp.inf, jnp.min(new_state.info["ranges"]))}
+            return (jax.tree.map(keep, new_state, state), jax.tree.map(keep, new_pcarry, pcarry),
+                    done | new_state.done), rec
+
+        keys = jax.random.split(jax.random.PRNGKey(0), max_steps)   # the follower draws nothing
+        (final, _, _), rec = jax.lax.scan(body, (state0, policy.init_carry(), jnp.zeros((), bool)), keys)
+        info, layout, field = final.info, final.sim.layout, params["field"]   # field: route cost (m)
+        end = info["position"]
+        obstacle_gaps = jnp.concatenate([geometry.box_distances(layouts.obstacles(layout), end),
+                                         geometry.capsule_distances(layouts.obstacles(layout), end)])
+        return {"positions": jnp.concatenate([state0.info["position"][None], rec["position"]]),
+                "underwater_before": rec["underwater_before"], "taken": rec["taken"], "rewards": rec["reward"],
+                "arrived": info["arrived"], "collision": info["collision"], "out_of_bounds": info["out_of_bounds"],
+                "terminated": info["terminated"], "final_distance": info["distance"],
+                "min_range": jnp.min(rec["min_range"]), "end_ranges": info["ranges"],
+                "route_start": flyability.field_at(field, state0.info["position"]),
+                "route_m": route_length(field, state0.info["position"]),
+                "route_end": flyability.field_at(field, end),
+                "start_gap": geometry.signed_distance(layouts.obstacles(layout), state0.info["position"]),
+                "end_obstacle_gap": jnp.min(obstacle_gaps), "end_obstacle": jnp.argmin(obstacle_gaps),
+                "end_boundary_gap": geometry.signed_distance(layouts.boundary(layout, walls), end)}
+
+    return jax.jit(jax.vmap(episode))
+
+
+def fly(test: str, stack, which, direction: str, seed: int, max_steps: int, crowding: float) -> dict:
+    """The trips of a robustness layout test (`test`: tanks or structured) in one direction, trip i in
+    layout which[i] of `stack`, flown by the route-follower: `rollout.trial_metrics` plus the diagnosis."""
+    count = len(which)
+    host = rollout.make_eval_env(0, max_steps)
+    start_w, goal_w = robustness.MEDIA[direction]
+    sampler = rollout.make_eval_env(0, max_steps, start_water_fraction=start_w, goal_water_fraction=goal_w)
+    keys = robustness.trip_keys(seed, test, 0, direction, count)
+    k_reset, _ = jax.vmap(rollout.split_trial_key, out_axes=1)(keys)
+    nominal = rollout.eval_params(0, max_steps)
+    trips = jax.tree.map(lambda x: x[np.asarray(which)], stack)
+    states = rollout.reset_states(sampler, k_reset, trips, rollout.plants_for(nominal, k_reset))
+    plans = jax.jit(plans_of, static_argnums=(3, 4))(stack, jnp.asarray(which), states.info["goal"], host.params,
+                                                     crowding)
+    out = jax.device_get(make_runner(host, route.route_follower(), max_steps)(plans, states))
+    out = {k: np.asarray(v) for k, v in out.items()}
+    trials = rollout.trial_metrics(out, host.control_dt, out["positions"][:, 0], np.asarray(states.info["yaw"]))
+    trials["goals"] = np.asarray(states.info["goal"])
+    return trials
+
+
+def family(tank: str) -> str:
+    """A gallery tank's family: its name's first word (dead_end: two)."""
+    return "dead_end" if tank.startswith("dead_end") else tank.split("_")[0]
+
+
+def rows_by(groups: np.ndarray, names, trials: dict, direction: str, extra=None) -> list[dict]:
+    """`summarize` per group (a row per name, then `all`), with the mean route at the start (m)."""
+    out = []
+    for g, name in list(enumerate(names)) + [(None, tank_trials.ALL)]:
+        mask = np.ones(len(groups), bool) if g is None else groups == g
+        sub = tank_trials.subset(trials, mask)
+        route_m = sub["route_m"][np.isfinite(sub["route_m"])]
+        arrived_s = sub["time"][sub["success"]]
+        out.append({"group": name, "direction": direction, **(extra or {}), **summarize(sub),
+                    "route_start_mean": float(route_m.mean()) if route_m.size else math.nan,
+                    "route_start_max": float(route_m.max()) if route_m.size else math.nan,
+                    "off_route_starts": int((~np.isfinite(sub["route_start"])).sum()),
+                    "time_max": float(arrived_s.max()) if arrived_s.size else math.nan})
+    return out
+
+
+# failures.csv's measured columns: (column, the trials' array); values rounded to cm.
+FAILURE_COLUMNS = (("start", "start_positions"), ("goal", "goals"), ("route_m", "route_m"),
+                   ("route_cost_start", "route_start"), ("route_cost_end", "route_end"),
+                   ("final_distance_m", "final_distance"), ("min_range_m", "min_range"), ("start_gap_m", "start_gap"),
+                   ("end_obstacle_gap_m", "end_obstacle_gap"), ("end_boundary_gap_m", "end_boundary_gap"),
+                   ("path_m", "path_length"))
+FAILURE_FIELDS = ("test", "where", "direction", "trial", "outcome", "steps", "end", "end_obstacle_slot",
+                  *(column for column, _ in FAILURE_COLUMNS))
+
+
+def failures(test: str, labels, trials: dict, direction: str) -> list[dict]:
+    """A row per trial that did not arrive: where it started and ended, why, the route, the nearest solid."""
+    out = []
+    for i in np.flatnonzero(~trials["success"]):
+        r = lambda v: [round(float(x), 2) for x in np.atleast_1d(v)]  # noqa: E731
+        row = {"test": test, "where": labels[i], "direction": SHORT[direction], "trial": int(i),
+               "outcome": OUTCOME_NAMES[int(trials["outcome"][i])], "steps": int(trials["steps"][i]),
+               "end": r(trials["positions"][i, -1]),
+               "end_obstacle_slot": layouts.SLOT_NAMES[1 + int(trials["end_obstacle"][i])]}
+        for column, key in FAILURE_COLUMNS:
+            value = r(trials[key][i])
+            row[column] = value if len(value) > 1 else value[0]
+        out.append(row)
+    return out
+
+
+CSV_FIELDS = ("group", "direction", "trials", "successes", "collisions", "out_of_bounds", "timeouts", "diverged",
+              "route_start_mean", "route_start_max", "off_route_starts", "time_mean", "time_max",
+              "path_length_mean")
+
+
+def write_csv(path: Path, rows, fields) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        w.writerows({k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()} for r in rows)
+
+
+def table(rows, title: str) -> str:
+    """Arrivals / trials (collisions, out of bounds, time-outs) per group, a column per direction."""
+    cells = {(r["group"], r["direction"]): r for r in rows}
+    groups = list(dict.fromkeys(r["group"] for r in rows))
+    out = [f"### {title}\n", "| | A-W | W-A | route A-W / W-A (m, mean) | arrival A-W / W-A (s, mean; slowest) |",
+           "|---|---|---|---|---|"]
+    for g in groups:
+        a, w = (cells[(g, d)] for d in DIRECTIONS)
+        cell = lambda r: (f"{r['successes']}/{r['trials']} "  # noqa: E731
+                          f"({r['collisions']}, {r['out_of_bounds']}, {r['timeouts']})")
+        label = f"**{g}**" if g == tank_trials.ALL else g
+        when = lambda r: f"{r['time_mean']:.0f}; {r['time_max']:.0f}"  # noqa: E731
+        out.append(f"| {label} | {cell(a)} | {cell(w)} | {a['route_start_mean']:.1f} / {w['route_start_mean']:.1f} | "
+                   f"{when(a)} / {when(w)} |")
+    return "\n".join(out) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=350, help="tanks trials per direction (trial i in tank i mod 35)")
+    ap.add_argument("--layouts", type=int, default=100, help="held-out structured layouts (one trial each way)")
+    ap.add_argument("--tank", default="gallery")
+    ap.add_argument("--max-steps", type=int, default=500)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--crowding", type=float, default=route.CROWDING,
+                    help="route cost near solids (route.plan; 0: flyability's shortest routes)")
+    ap.add_argument("--out", default=None, help="folder for the CSVs and summary.md")
+    args = ap.parse_args()
+    from docrl_jax.envs import structures
+    t_all = time.time()
+    params = rollout.make_eval_env(0, args.max_steps).params
+    names, stack = tank_trials.load(args.tank, params)
+    tank_of = tank_trials.tank_index(args.trials, len(names))
+    family_names = list(dict.fromkeys(family(n) for n in names))
+    family_of = np.array([family_names.index(family(names[t])) for t in tank_of])
+    held = structures.held_out_set(args.layouts, params)
+    tank_rows, family_rows, struct_rows, failed, seconds = [], [], [], [], {}
+    for direction in DIRECTIONS:
+        t0 = time.time()
+        trials = fly("tanks", stack, tank_of, direction, args.seed, args.max_steps, args.crowding)
+        seconds[f"tanks {SHORT[direction]}"] = round(time.time() - t0, 1)
+        tank_rows += rows_by(tank_of, names, trials, direction)
+        family_rows += rows_by(family_of, family_names, trials, direction)
+        failed += failures("tanks", [names[t] for t in tank_of], trials, direction)
+        t0 = time.time()
+        trials = fly("structured", held.layouts, np.arange(args.layouts), direction, args.seed, args.max_steps,
+                     args.crowding)
+        seconds[f"structured {SHORT[direction]}"] = round(time.time() - t0, 1)
+        fam = np.asarray(held.family)
+        struct_rows += rows_by(fam, list(structures.FAMILIES), trials, direction)
+        failed += failures("structured", [f"{structures.FAMILIES[f]} #{i}" for f, i in zip(fam, held.ids)],
+                           trials, direction)
+        print(f"{SHORT[direction]}: {seconds}", flush=True)
+    seconds["total"] = round(time.time() - t_all, 1)
+    text = "\n".join([table(family_rows, f"Gallery ({args.tank}) per family, {args.trials} trials each way"),
+                      table(tank_rows, "Gallery per tank"),
+                      table(struct_rows, f"Held-out structured set, {args.layouts} layouts, per family"),
+                      "Arrivals / trials (collisions, out of bounds, time-outs).\n",
+                      f"Wall time (s, compile included): {seconds}\n"])
+    print(text)
+    for f in failed:
+        print(f)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        write_csv(out / "tanks.csv", family_rows + tank_rows, CSV_FIELDS)
+        write_csv(out / "structured.csv", struct_rows, CSV_FIELDS)
+        write_csv(out / "failures.csv", failed, FAILURE_FIELDS)
+        (out / "summary.md").write_text(text)
+
+
+if __name__ == "__main__":
+    main()

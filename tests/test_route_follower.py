@@ -1,0 +1,62 @@
+"""The privileged route-follower (docrl_jax/baselines/route.py) in a hand-made tank: a wall across the
+straight line from start to goal, open beyond its end. Following the tank's route field it flies round the
+wall's end and arrives; given a straight-line field instead (the tank as if empty) it flies into the wall."""
+
+import jax
+import numpy as np
+import pytest
+
+from docrl_jax.baselines import route
+from docrl_jax.envs import tanks
+from docrl_jax.evaluate import rollout
+
+MAX_STEPS = 250
+WALL_END_Y = -1.5   # the wall covers y < -1.5 at x = 0; start and goal lie at y = -3 on either side
+
+TANK = f"""
+name: wall_and_opening
+floor_top: -1.5
+air: [-1.5, -3.0, 1.0]
+water: [1.5, -3.0, -0.8]
+solids:
+  - type: box
+    name: wall
+    center: [0.0, {(-5.1 + WALL_END_Y) / 2}, 1.95]
+    half_extents: [0.15, {(WALL_END_Y + 5.1) / 2}, 3.45]
+"""
+
+
+@pytest.fixture(scope="module")
+def flights(tmp_path_factory):
+    path = tmp_path_factory.mktemp("tank") / "wall.yaml"
+    path.write_text(TANK)
+    env = rollout.make_eval_env(0, MAX_STEPS, start_water_fraction=0.0, goal_water_fraction=1.0)
+    layout = jax.tree.map(lambda x: x[None], tanks.load(path, env.params))
+    state = rollout.reset_states(env, jax.random.PRNGKey(3)[None], layout)
+    goal = state.info["goal"][0]
+    one = jax.tree.map(lambda x: x[0], layout)
+    out = {}
+    for name, params in (("route", route.plan(one, env.params, goal)), ("straight", route.straight_plan(goal))):
+        out[name] = rollout.run_from_states(env, route.route_follower(params), state, jax.random.PRNGKey(0)[None],
+                                            MAX_STEPS)
+    return state, out
+
+
+def test_start_and_goal_are_the_tank_points(flights):
+    state, _ = flights
+    np.testing.assert_allclose(np.asarray(state.info["position"][0]), [-1.5, -3.0, 1.0], atol=1e-5)
+    np.testing.assert_allclose(np.asarray(state.info["goal"][0]), [1.5, -3.0, -0.8], atol=1e-5)
+
+
+def test_route_field_arrives_round_the_wall(flights):
+    trials = flights[1]["route"]
+    assert trials["success"][0], f"outcome {trials['outcome'][0]} after {trials['steps'][0]} steps"
+    assert trials["positions"][0, :, 1].max() > WALL_END_Y + 0.5    # it went round the wall's end
+    assert trials["path_length"][0] > 2 * np.hypot(1.5, WALL_END_Y + 3.0 + 0.5)   # not through it
+
+
+def test_straight_line_field_hits_the_wall(flights):
+    trials = flights[1]["straight"]
+    assert not trials["success"][0]
+    assert trials["collision"][0]
+    assert abs(trials["positions"][0, trials["steps"][0], 0]) < 0.8    # it ended at the wall
