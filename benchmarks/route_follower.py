@@ -39,7 +39,7 @@ OUTCOME_NAMES = ("arrived", "collision", "out of bounds", "time-out", "diverged"
 def plans_of(stack, which, goals, p, crowding: float, batch: int = 25) -> dict:
     """The follower's params (`route.plan`) of each trial: the free cells and gaps of each layout of
     `stack` once, then trial i's field to goals[i] in layout which[i], `batch` at a time."""
-    cells = jax.lax.map(lambda l: (flyability.free_cells(l, p), route.cell_gaps(l)), stack, batch_size=batch)
+    cells = jax.lax.map(lambda l: (flyability.free_cells(l, p), flyability.cell_gaps(l)), stack, batch_size=batch)
     one = lambda a: route.plan_cells(cells[0][a[0]], cells[1][a[0]], p, a[1], crowding)  # noqa: E731
     return jax.lax.map(one, (which, goals), batch_size=batch)
 

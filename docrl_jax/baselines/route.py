@@ -45,57 +45,31 @@ _STRAIGHT = straight_line()
 _AROUND = np.stack(np.meshgrid(*[np.arange(-REACH_CELLS, REACH_CELLS + 1)] * 3, indexing="ij"), -1).reshape(-1, 3)
 
 
-def cell_gaps(layout) -> jax.Array:
-    """float32 (X, Y, Z): distance from every cell centre to the nearest solid: walls, floor, obstacles."""
-    obstacle_gap, floor_gap = flyability._solid_gaps(layout)
-    return jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), flyability._wall_gap(flyability._centres()))
-
-
 def goal_seeds(free: jax.Array, goal: jax.Array, radius: float) -> jax.Array:
     """bool (X, Y, Z): the free cells within `radius` of `goal` (an arrival there ends the trip); where
     none is, the free cells nearest the goal (within a cell's diagonal of the nearest)."""
-    gap = jnp.where(free, jnp.linalg.norm(flyability._centres() - goal, axis=-1), jnp.inf)
+    gap = jnp.where(free, jnp.linalg.norm(flyability.cell_centres() - goal, axis=-1), jnp.inf)
     return free & (gap <= jnp.maximum(radius, jnp.min(gap) + flyability.GRID_STEP * np.sqrt(3.0)))
-
-
-def weighted_field(free: jax.Array, seeds: jax.Array, cost: jax.Array) -> jax.Array:
-    """float32 (X, Y, Z): `flyability.distance_field` with every move's length times the cost (>= 1) of
-    the cell it leaves: the least route cost from every free cell to a seed; inf where none is reached."""
-    inf = jnp.float32(jnp.inf)
-    nx, ny, nz = free.shape
-
-    def sweep(state):
-        d, _, n = state
-        padded = jnp.pad(d, 1, constant_values=inf)
-        best = d
-        for (i, j, k), w in zip(flyability._OFFSETS, flyability._WEIGHTS):
-            best = jnp.minimum(best, padded[1 + i:1 + i + nx, 1 + j:1 + j + ny, 1 + k:1 + k + nz] + w * cost)
-        new = jnp.where(free, best, inf)
-        return new, jnp.any(new < d), n + 1
-
-    d0 = jnp.where(free & seeds, jnp.float32(0.0), inf)
-    more = lambda s: s[1] & (s[2] < flyability.MAX_SWEEPS)  # noqa: E731
-    return jax.lax.while_loop(more, sweep, (d0, jnp.asarray(True), jnp.asarray(0, jnp.int32)))[0]
 
 
 def plan(layout, p, goal: jax.Array, crowding: float = CROWDING) -> dict:
     """The follower's params for one trip to `goal` in `layout` (module doc): {"field", "gap"}."""
-    return plan_cells(flyability.free_cells(layout, p), cell_gaps(layout), p, goal, crowding)
+    return plan_cells(flyability.free_cells(layout, p), flyability.cell_gaps(layout), p, goal, crowding)
 
 
 def plan_cells(free: jax.Array, gap: jax.Array, p, goal: jax.Array, crowding: float = CROWDING) -> dict:
-    """`plan` from a layout's free cells and `cell_gaps` (computed once for many trips in one tank)."""
+    """`plan` from a layout's free cells and `flyability.cell_gaps` (computed once for many trips in one tank)."""
     seeds = goal_seeds(free, goal, p.arrival_distance)
     if crowding == 0:
         return {"field": flyability.distance_field(free, seeds), "gap": gap}
     inside = jnp.clip((SAFE_GAP - gap) / (SAFE_GAP - flyability.clearance(p)), 0.0, 1.0)
-    return {"field": weighted_field(free, seeds, 1.0 + crowding * inside), "gap": gap}
+    return {"field": flyability.distance_field(free, seeds, 1.0 + crowding * inside), "gap": gap}
 
 
 def straight_plan(goal: jax.Array) -> dict:
     """Params of the control case: the straight-line distance to `goal` from every cell and no solid
     anywhere, as if the tank were empty (the follower then flies straight at the goal)."""
-    field = jnp.linalg.norm(flyability._centres() - goal, axis=-1)
+    field = jnp.linalg.norm(flyability.cell_centres() - goal, axis=-1)
     return {"field": field, "gap": jnp.full(field.shape, jnp.inf, jnp.float32)}
 
 
@@ -114,7 +88,7 @@ def _entry(field: jax.Array, position: jax.Array) -> jax.Array:
     distance from `position` (a solid between would need 1.1 m of free-cell clearance: more than the reach)."""
     idx, _ = flyability.nearest_cell(position)
     cells = jnp.clip(idx + _AROUND, 0, jnp.asarray(flyability.GRID_SHAPE) - 1)
-    centres = jnp.asarray(flyability._ORIGIN) + cells * flyability.GRID_STEP
+    centres = flyability.cell_centres()[cells[..., 0], cells[..., 1], cells[..., 2]]
     cost = field[cells[:, 0], cells[:, 1], cells[:, 2]] + jnp.linalg.norm(centres - position, axis=-1)
     return centres[jnp.argmin(cost)]
 

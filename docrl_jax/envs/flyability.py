@@ -105,6 +105,17 @@ def _region(layout: layouts.Layout, p: EnvParams, medium, free, obstacle_gap) ->
     return free & inside & (obstacle_gap >= p.goal_clearance)
 
 
+def cell_centres() -> jax.Array:
+    """float32 (X, Y, Z, 3): the grid's cell centres (world frame, m)."""
+    return _centres()
+
+
+def cell_gaps(layout: layouts.Layout) -> jax.Array:
+    """float32 (X, Y, Z): distance from every cell centre to the nearest solid: walls, floor, obstacles."""
+    obstacle_gap, floor_gap = _solid_gaps(layout)
+    return jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), _wall_gap(_centres()))
+
+
 def free_cells(layout: layouts.Layout, p: EnvParams) -> jax.Array:
     """bool (X, Y, Z): cells whose centre lies within the episode's vertical bounds (layout.z_min ..
     p.bounds[1]) and at least `clearance(p)` from the walls, the floor and every obstacle."""
@@ -118,28 +129,32 @@ def region_cells(layout: layouts.Layout, p: EnvParams, medium) -> jax.Array:
     return _region(layout, p, medium, _free(layout, p, obstacle_gap, floor_gap), obstacle_gap)
 
 
-def _relax(d: jax.Array) -> jax.Array:
-    """One sweep: every cell takes the best of itself and its 26 neighbours plus the move's length."""
+def _relax(d: jax.Array, cost) -> jax.Array:
+    """One sweep: every cell takes the best of itself and its 26 neighbours plus the move's length (times
+    the cell's cost)."""
     nx, ny, nz = d.shape
     padded = jnp.pad(d, 1, constant_values=jnp.inf)
     best = d
     for (i, j, k), w in zip(_OFFSETS, _WEIGHTS):
-        best = jnp.minimum(best, padded[1 + i:1 + i + nx, 1 + j:1 + j + ny, 1 + k:1 + k + nz] + w)
+        best = jnp.minimum(best, padded[1 + i:1 + i + nx, 1 + j:1 + j + ny, 1 + k:1 + k + nz] + w * cost)
     return best
 
 
-def distance_field(free: jax.Array, seeds: jax.Array) -> jax.Array:
+def distance_field(free: jax.Array, seeds: jax.Array, cost=None) -> jax.Array:
     """float32 (X, Y, Z): route length (m) from every free cell to the nearest free seed cell over
     26-neighbour moves through free cells (move lengths step, step * sqrt2, step * sqrt3); inf where no
-    seed is reachable and on every cell that is not free. Sweeps until nothing changes (at most
-    `MAX_SWEEPS`; a route needs one sweep per move, ~100 in this grid)."""
+    seed is reachable and on every cell that is not free. `cost` (X, Y, Z), >= 1: each move's length is
+    multiplied by the cost of the cell it leaves (a route-follower's dislike of cells near solids); the
+    field is then the least route cost. Sweeps until nothing changes (at most `MAX_SWEEPS`; a route needs
+    one sweep per move, ~100 in this grid)."""
     free = jnp.asarray(free, bool)
     inf = jnp.float32(jnp.inf)
     d0 = jnp.where(free & seeds, jnp.float32(0.0), inf)
+    cost = jnp.float32(1.0) if cost is None else cost
 
     def sweep(state):
         d, _, n = state
-        new = jnp.where(free, _relax(d), inf)
+        new = jnp.where(free, _relax(d, cost), inf)
         return new, jnp.any(new < d), n + 1
 
     def more(state):
