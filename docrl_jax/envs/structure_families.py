@@ -90,10 +90,15 @@ def _no_capsules():
     return jnp.zeros((CAPSULES, 3)), jnp.zeros((CAPSULES, 3)), jnp.full(CAPSULES, 0.1), jnp.zeros(CAPSULES, bool)
 
 
-_NOWHERE = jnp.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
+def _nowhere():
+    """A keep-out box holding nothing (lo > hi). Built when called, never at import: the env imports
+    this module while tracing, and a module-level jnp array made then would be a tracer of that trace,
+    leaked into every later program (JAX then turns all their constants into inputs it never passes)."""
+    return jnp.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
 
 
-def _part(boxes, regions, via, used=None, capsules=None, keep_out=_NOWHERE):
+def _part(boxes, regions, via, used=None, capsules=None, keep_out=None):
+    keep_out = _nowhere() if keep_out is None else keep_out
     return Part(*_boxes(boxes, used), *(capsules or _no_capsules()), regions=regions, via=via, keep_out=keep_out)
 
 
