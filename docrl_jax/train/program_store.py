@@ -12,6 +12,12 @@ never loads a stale program). A missing, unreadable or incompatible entry is a m
 compiles as usual and the entry is written again. Entries are pickles, trusted like JAX's own
 cache: point the cache only at folders you write.
 
+JAX may pass a program's larger constants (closed-over arrays: the MJX model, the scene's solids) as
+hidden arguments rather than inside the executable (`jax_use_simplified_jaxpr_constants`, off by
+default in JAX 0.10 and 0.11; under it every env program has dozens to hundreds). JAX's own
+serialisation refuses such programs, so an entry keeps their values beside the executable and a
+load hands them back; an entry whose executable expects other inputs than it carries is a miss.
+
 A launch starts loading its entries early (`prefetch`), before it imports MJX, Flax and Orbax:
 loading an executable runs in XLA without Python's lock, so the two overlap. An entry therefore
 keeps the executable apart from its input and output trees, whose classes (MJX's `Data`) only the
@@ -37,6 +43,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 import jax
+import numpy as np
 from jax.experimental import serialize_executable
 
 from docrl_jax import sharding
@@ -45,8 +52,9 @@ from docrl_jax.resources import resource_dir, versions
 if TYPE_CHECKING:
     from docrl_jax.config import Config
 
-# 2: (FORMAT, executable, pickled (in_tree, out_tree)); 1 pickled the trees beside the executable.
-FORMAT = 2
+# 3: (FORMAT, (executable, flat argument info, no_kwargs, hoisted constants), pickled (in_tree, out_tree));
+# 2 had no constants; 1 pickled the trees beside the executable.
+FORMAT = 3
 FOLDER = "programs"
 MAX_ENTRIES = 60   # the most recently used entries kept (three per config and checkout)
 # Packages whose version changes the traced or compiled program.
@@ -54,7 +62,8 @@ PACKAGES = ("jax", "jaxlib", "jax-cuda12-plugin", "jax-cuda12-pjrt", "jax-cuda13
             "mujoco", "mujoco-mjx", "flax", "optax", "chex", "numpy")
 # JAX settings that change what a traced function lowers to.
 JAX_FLAGS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_default_prng_impl", "jax_threefry_partitionable",
-             "jax_numpy_dtype_promotion", "jax_use_shardy_partitioner")
+             "jax_numpy_dtype_promotion", "jax_use_shardy_partitioner", "jax_use_simplified_jaxpr_constants",
+             "jax_embedded_constants_max_bytes")
 
 
 # ------------------------------------------------------------------ the persistent compilation cache
@@ -90,13 +99,29 @@ def folder() -> Path | None:
 
 @functools.lru_cache(maxsize=1)
 def source_digest() -> str:
-    """sha256 of docrl_jax's Python files and scene files, names and bytes."""
+    """sha256 of docrl_jax's Python files, scene files and packaged tanks, names and bytes."""
     h = hashlib.sha256()
     package, assets = Path(__file__).resolve().parents[1], resource_dir("assets")
     files = [(p.relative_to(package).as_posix(), p) for p in sorted(package.rglob("*.py"))]
     files += [(f"assets/{p.name}", p) for p in sorted(assets.glob("*.xml"))]
+    files += [(f"assets/tanks/{p.name}", p) for p in sorted((assets / "tanks").glob("*")) if p.is_file()]
     for name, path in files:
         h.update(name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
+def tank_digest(config: Config) -> str:
+    """sha256 of the files that the run's env.tank names (a file, or every file of a folder; a bare
+    name or 'gallery' is a packaged tank, in `source_digest`): the programs hold the tanks' solids as
+    constants, so an edited tank file is a miss."""
+    spec = config.env.env_kwargs().get("tank")
+    if spec is None:
+        return ""
+    path = Path(str(spec)).expanduser()
+    h = hashlib.sha256()
+    for file in sorted(path.iterdir()) if path.is_dir() else [path]:
+        if file.is_file():
+            h.update(file.name.encode() + b"\0" + file.read_bytes())
     return h.hexdigest()
 
 
@@ -137,7 +162,8 @@ def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[st
     described = {"init": (config, traced), "chunk": (config, traced), "evaluate": (evaluation, None)}
     if config.train.eval_alongside:
         described["eval_starts"] = (evaluation, None)
-    return {what: key(repr(c), device_key(devices), kind, what) for what, (c, kind) in described.items()}
+    tanks = tank_digest(config)
+    return {what: key(repr(c), device_key(devices), kind, what, tanks) for what, (c, kind) in described.items()}
 
 
 # The loads `prefetch` started: a future of {entry path: future of its `_read`}, set once the
@@ -171,10 +197,10 @@ def prefetch(config: Config) -> None:
 
 def _read(path: Path, devices) -> tuple:
     """The entry at `path` with its executable loaded onto `devices` (the seconds-long part, which
-    XLA runs without Python's lock): ((unloaded executable, flat argument info, no_kwargs), the
-    pickled trees). This is the first half of `serialize_executable.deserialize_and_load`, split off
-    because its second half needs the trees; the store's key holds JAX's version, and anything
-    that fails here is a miss."""
+    XLA runs without Python's lock): ((unloaded executable, flat argument info, no_kwargs, hoisted
+    constants), the pickled trees). This is the first half of `serialize_executable.deserialize_and_load`,
+    split off because its second half needs the trees; the store's key holds JAX's version, and
+    anything that fails here is a miss."""
     if devices[0].platform == "cpu" and not _cpu_kernels_ready():
         raise LookupError("no loading on this CPU")
     with open(path, "rb") as f:
@@ -197,16 +223,49 @@ def load(store: Path, name: str, devices) -> jax.stages.Compiled | None:
     path = store / f"{name}.bin"
     try:
         early = _take_prefetched(path)
-        (unloaded, args_info_flat, no_kwargs), trees = early.result() if early is not None else _read(path, devices)
+        entry = early.result() if early is not None else _read(path, devices)
+        (unloaded, args_info_flat, no_kwargs, consts), trees = entry
         in_tree, out_tree = pickle.loads(trees)
-        # The second half of deserialize_and_load, on the devices the read loaded it onto.
-        program = jax.stages.Compiled(unloaded.load(), [], in_tree.unflatten(args_info_flat), out_tree,
-                                      no_kwargs=no_kwargs)
+        # The second half of deserialize_and_load, on the devices the read loaded it onto, with the
+        # constants it takes as hidden arguments placed as it expects them.
+        executable = unloaded.load()
+        _check_inputs(executable, consts, len(args_info_flat))
+        program = jax.stages.Compiled(executable, executable.shard_const_args(consts) if consts else [],
+                                      in_tree.unflatten(args_info_flat), out_tree, no_kwargs=no_kwargs)
         with contextlib.suppress(OSError):
             os.utime(path)  # recently used: kept by the pruning in `save`
         return program
     except Exception:  # noqa: BLE001  a missing, damaged or foreign entry is a miss; the caller compiles and rewrites it
         return None
+
+
+def _check_inputs(executable, consts: list, num_args: int) -> None:
+    """Raises LookupError unless `executable` takes `consts` (shapes and dtypes) and then `num_args`
+    arguments: a program called with other inputs fails only at its first call ("compiled for N
+    inputs but called with M"), after the launch has committed to it."""
+    expected = getattr(getattr(executable, "_all_args_info", None), "in_avals", None)
+    if expected is None or len(expected) != len(consts) + num_args:
+        raise LookupError("the executable's inputs are not the entry's")
+    if any((a.shape, a.dtype) != (c.shape, c.dtype) for a, c in zip(expected, consts)):
+        raise LookupError("the entry's constants are not the executable's")
+
+
+def _serialize(compiled: jax.stages.Compiled) -> tuple[bytes, object, object]:
+    """`serialize_executable.serialize` that also keeps the program's hoisted constants (as NumPy
+    arrays), which it refuses: (payload, in_tree, out_tree). Raises if the program cannot be kept
+    (a closed-over mutable array, a constant NumPy cannot hold such as a PRNG key array)."""
+    unloaded = getattr(compiled._executable, "_unloaded_executable", None)
+    if unloaded is None:
+        raise ValueError("this executable cannot be serialised")
+    if getattr(unloaded, "mut", None) and unloaded.mut.in_mut:
+        raise ValueError("a closed-over mutable array")
+    consts = [np.asarray(c) for c in compiled._params.const_args]
+    if any(c.dtype == object for c in consts):
+        raise ValueError("a constant NumPy cannot hold")
+    args_info_flat, in_tree = jax.tree.flatten(compiled.args_info)
+    with io.BytesIO() as f:
+        serialize_executable._JaxPjrtPickler(f).dump((unloaded, args_info_flat, compiled._no_kwargs, consts))
+        return f.getvalue(), in_tree, compiled.out_tree
 
 
 @functools.lru_cache(maxsize=1)
@@ -250,12 +309,8 @@ def save(store: Path, name: str, compiled: jax.stages.Compiled) -> bool:
     one). Returns False when the program cannot be serialised or the folder is not writable: the
     store only saves time, so its failures never stop a run."""
     tmp = None
-    if getattr(getattr(compiled, "_params", None), "const_args", ()):
-        # Newer JAX passes large constants to a program as hidden arguments, which a serialised executable
-        # loses: loaded, it would be called without them ("compiled for N inputs but called with M").
-        return False
     try:
-        payload, in_tree, out_tree = serialize_executable.serialize(compiled)
+        payload, in_tree, out_tree = _serialize(compiled)
         store.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=store, prefix=f".{name}.", suffix=".tmp")
         with os.fdopen(fd, "wb") as f:

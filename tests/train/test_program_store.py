@@ -35,6 +35,8 @@ def test_stored_programs_load_without_tracing_and_compute_the_same(tmp_path, mon
     monkeypatch.setattr(programs, "make_trainer", lambda *a: pytest.fail("the env was built: not loaded"))
     loaded, _ = programs.compile_programs(easy_config(train__seed=5, train__total_env_steps=48000), devices)
     assert loaded.origin == "loaded" and compiled.origin == "compiled"
+    # Whatever constants JAX passes the programs as hidden arguments come back with them.
+    assert all(len(getattr(loaded, w)._params.const_args) == len(getattr(compiled, w)._params.const_args) for w in names)
     assert jax.tree.structure(loaded.state_shape) == jax.tree.structure(compiled.state_shape)
     assert jax.tree.leaves(loaded.state_shape) == jax.tree.leaves(compiled.state_shape)
 
@@ -82,7 +84,7 @@ def test_damaged_entries_are_misses_and_old_ones_are_pruned(tmp_path, monkeypatc
     assert program_store.save(tmp_path / "a_file" / "programs", "b", f) is False
 
 
-def test_entry_names_follow_what_shapes_the_programs():
+def test_entry_names_follow_what_shapes_the_programs(tmp_path):
     devices = (jax.devices()[0],)
     base = program_store.store_names(easy_config(), devices)
     assert len(set(base.values())) == 3
@@ -94,6 +96,12 @@ def test_entry_names_follow_what_shapes_the_programs():
     # A sweep's traced programs are others; they share the plain run's evaluation.
     traced = program_store.store_names(easy_config(), devices, traced=True)
     assert traced["chunk"] != base["chunk"] and traced["evaluate"] == base["evaluate"]
+    # The programs hold a tank set's solids (constants): an edited tank file is a new entry.
+    tank = tmp_path / "tank.yaml"
+    tank.write_text("floor_top: -1.3\n")
+    in_tank = program_store.store_names(easy_config(env__scenario=0, env__tank=str(tank)), devices)
+    tank.write_text("floor_top: -1.5\n")
+    assert program_store.store_names(easy_config(env__scenario=0, env__tank=str(tank)), devices)["chunk"] != in_tank["chunk"]
     # An edited checkout never loads an old entry.
     program_store.source_digest.cache_clear()
     try:
