@@ -25,7 +25,9 @@ import numpy as np
 from flax import struct
 
 from docrl_jax.envs._quiet_import import mjx  # mujoco.mjx, without its notice about the optional Warp backend
-from docrl_jax.envs import geometry, layouts, physics, randomization, sensors
+# structures is imported here, not on first use: a first import while a program traces would run its
+# module-level code inside that trace.
+from docrl_jax.envs import geometry, layouts, physics, randomization, sensors, structures
 from docrl_jax.envs.params import PAPER_OBS_SIZE, EnvParams, MAX_LATENCY
 from docrl_jax.resources import resource_dir
 
@@ -163,7 +165,6 @@ class HUAUVEnv:
             i = jax.random.randint(key, (), 0, self.tanks.index.shape[0])
             return jax.tree.map(lambda x: x[i], self.tanks)
         if self.params.layout_structures > 0:
-            from docrl_jax.envs import structures
             return structures.draw(key, self.params)
         return layouts.draw(key, self.params)
 
