@@ -29,7 +29,7 @@ import numpy as np
 
 from docrl_jax.baselines import route
 from docrl_jax.envs import flyability, geometry, layouts
-from docrl_jax.evaluate import robustness, rollout, tank_trials
+from docrl_jax.evaluate import robustness, rollout, tank_sets
 from docrl_jax.evaluate.tables import SHORT, summarize
 
 DIRECTIONS = ("air_to_water", "water_to_air")
@@ -118,9 +118,9 @@ def family(tank: str) -> str:
 def rows_by(groups: np.ndarray, names, trials: dict, direction: str, extra=None) -> list[dict]:
     """`summarize` per group (a row per name, then `all`), with the mean route at the start (m)."""
     out = []
-    for g, name in list(enumerate(names)) + [(None, tank_trials.ALL)]:
+    for g, name in list(enumerate(names)) + [(None, tank_sets.ALL)]:
         mask = np.ones(len(groups), bool) if g is None else groups == g
-        sub = tank_trials.subset(trials, mask)
+        sub = tank_sets.subset(trials, mask)
         route_m = sub["route_m"][np.isfinite(sub["route_m"])]
         arrived_s = sub["time"][sub["success"]]
         out.append({"group": name, "direction": direction, **(extra or {}), **summarize(sub),
@@ -179,7 +179,7 @@ def table(rows, title: str) -> str:
         a, w = (cells[(g, d)] for d in DIRECTIONS)
         cell = lambda r: (f"{r['successes']}/{r['trials']} "  # noqa: E731
                           f"({r['collisions']}, {r['out_of_bounds']}, {r['timeouts']})")
-        label = f"**{g}**" if g == tank_trials.ALL else g
+        label = f"**{g}**" if g == tank_sets.ALL else g
         when = lambda r: f"{r['time_mean']:.0f}; {r['time_max']:.0f}"  # noqa: E731
         out.append(f"| {label} | {cell(a)} | {cell(w)} | {a['route_start_mean']:.1f} / {w['route_start_mean']:.1f} | "
                    f"{when(a)} / {when(w)} |")
@@ -200,8 +200,8 @@ def main() -> None:
     from docrl_jax.envs import structures
     t_all = time.time()
     params = rollout.make_eval_env(0, args.max_steps).params
-    names, stack = tank_trials.load(args.tank, params)
-    tank_of = tank_trials.tank_index(args.trials, len(names))
+    names, stack = tank_sets.load(args.tank, params)
+    tank_of = tank_sets.tank_index(args.trials, len(names))
     family_names = list(dict.fromkeys(family(n) for n in names))
     family_of = np.array([family_names.index(family(names[t])) for t in tank_of])
     held = structures.held_out_set(args.layouts, params)

@@ -225,13 +225,13 @@ class HUAUVEnv:
         goal = _one_env("reset_to", "goal", jnp.asarray(goal, jnp.float32), (3,))
         yaw = _one_env("reset_to", "yaw", jnp.asarray(yaw, jnp.float32), ())
         k_wind, k_noise, k_next = jax.random.split(key, 3)
-        if self.procedural and layout is None and self.tanks is not None:   # a tank as it is
-            layout = self.draw_layout(jax.random.fold_in(key, 1))
-        elif self.procedural and layout is None:   # random obstacles only, cleared from the start and goal
-            k_layout = jax.random.fold_in(key, 1)
-            index = layouts.draw(k_layout, p).index
-            layout = layouts.generate(layouts.layout_key(index), p, clear=jnp.stack([position, goal]))
-            layout = layout.replace(index=index)
+        if self.procedural and layout is None:
+            if self.tanks is not None:   # a tank as it is
+                layout = self.draw_layout(jax.random.fold_in(key, 1))
+            else:   # random obstacles only, cleared from the start and goal
+                index = layouts.draw(jax.random.fold_in(key, 1), p).index
+                layout = layouts.generate(layouts.layout_key(index), p, clear=jnp.stack([position, goal]))
+                layout = layout.replace(index=index)
         if plant is None:
             plant = randomization.sample_plant(jax.random.fold_in(key, 2), p)
         quat = jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])

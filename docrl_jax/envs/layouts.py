@@ -99,6 +99,13 @@ def _rot_y(angle):
                       jnp.stack([-s, zero, c], -1)], -2)
 
 
+def capsule_frame(axis):
+    """A rotation whose local z (a capsule's axis) lies along `axis` (..., 3): yaw about z, then tilt
+    about y, as the random bars are posed; the one frame tank files and structures build capsules in."""
+    axis = axis / jnp.linalg.norm(axis, axis=-1, keepdims=True)
+    return _rot_z(jnp.arctan2(axis[..., 1], axis[..., 0])) @ _rot_y(jnp.arccos(jnp.clip(axis[..., 2], -1.0, 1.0)))
+
+
 def _slot_draws(key, n: int, p: EnvParams, draws: int):
     """What every slot kind draws alike: `draws` keys, U(lo, hi) over the n slots, centres (n, 2) over
     the tank, and which slots are beams (probability `layout_beam_fraction`)."""

@@ -235,7 +235,7 @@ def generate(key: jax.Array, p: EnvParams, second_odds=(_SECOND_GROVE, _SECOND_P
     length = jnp.linalg.norm(axis, axis=-1)
     cap_pos = jnp.where(cap_used[:, None], (cap_a + cap_b) / 2, parked)
     unit = jnp.where(cap_used[:, None], axis / jnp.maximum(length, 1e-6)[:, None], jnp.array([0.0, 0.0, 1.0]))
-    cap_rot = jax.vmap(_axis_frame)(unit)
+    cap_rot = layouts.capsule_frame(unit)
     cap_size = jnp.where(cap_used[:, None], jnp.stack([cap_r, length / 2, jnp.zeros_like(cap_r)], -1), 0.1)
 
     pos = base.pos.at[rb].set(jnp.where(keep_box[:, None], base.pos[rb], parked))
@@ -246,14 +246,6 @@ def generate(key: jax.Array, p: EnvParams, second_odds=(_SECOND_GROVE, _SECOND_P
     rot = base.rot.at[sb].set(jnp.tile(jnp.eye(3), (fam.BOXES, 1, 1))).at[sc].set(cap_rot)
     size = base.size.at[sb].set(box_size).at[sc].set(cap_size)
     return base.replace(pos=pos, rot=rot, size=size, clear=clear, regions=primary.regions)
-
-
-def _axis_frame(z):
-    """A rotation whose third column (a capsule's axis) is the unit vector `z` (horizontal or not)."""
-    helper = jnp.where(jnp.abs(z[2]) < 0.9, jnp.array([0.0, 0.0, 1.0]), jnp.array([1.0, 0.0, 0.0]))
-    x = jnp.cross(helper, z)
-    x = x / jnp.linalg.norm(x)
-    return jnp.stack([x, jnp.cross(z, x), z], -1)
 
 
 class StructuresError(ValueError):

@@ -108,12 +108,6 @@ def _text(value, where: str, what: str) -> str:
     return value
 
 
-def _axis_rotation(axis: np.ndarray) -> np.ndarray:
-    """A rotation whose local z lies along `axis`: yaw about z, then tilt about y (as layouts' bars)."""
-    ax, ay, az = axis / np.linalg.norm(axis)
-    return Rotation.from_euler("ZY", [math.atan2(ay, ax), math.acos(np.clip(az, -1.0, 1.0))]).as_matrix()
-
-
 def _solid(entry, i: int, where: str):
     """(kind, name, pos, rot, size) of solids[i]."""
     if not isinstance(entry, dict):
@@ -144,7 +138,7 @@ def _solid(entry, i: int, where: str):
     if half_length <= 0:
         raise TankError(f"{at}: from and to are the same point; a capsule needs two different ends")
     size = np.array([radius, half_length, 0.0])
-    return kind, name, (a + b) / 2, _axis_rotation(b - a), size
+    return kind, name, (a + b) / 2, np.asarray(layouts.capsule_frame(jnp.asarray(b - a, jnp.float32))), size
 
 
 def _check_inside(name, centre, floor_top: float, where: str) -> None:

@@ -29,8 +29,8 @@ import yaml
 
 from docrl_jax import runs
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import rollout, tank_trials
-from docrl_jax.evaluate.tank_trials import TankSetError
+from docrl_jax.evaluate import rollout, tank_sets, tank_trials
+from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, NOMINAL_YAW, SCENARIOS, TrialSpec
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, markdown_table, trial_table, write_outputs
 
@@ -192,7 +192,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         bad = [k for k in rollout.MEDIA_KEYS if k in cfg["env"]]   # --tank forces them per direction
         if bad:
             raise UsageError(f"--env {bad[0]}: set by --tank (A-W starts in air and ends under water, W-A the reverse)")
-        cfg["tank_names"] = tank_trials.check(args.tank, rollout.eval_params(0, args.max_steps, **cfg["env"]))
+        cfg["tank_names"] = tank_sets.check(args.tank, rollout.eval_params(0, args.max_steps, **cfg["env"]))
     if args.curves and cfg["out"] is None:
         raise UsageError("--curves writes learning_curves.png: give --out DIR")
     for run in args.run or []:

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import cli, robustness, rollout, tank_trials
+from docrl_jax.evaluate import cli, robustness, rollout, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
 from docrl_jax.evaluate.robustness import ENVELOPE, PERTURBATIONS, TESTS, Method
@@ -148,7 +148,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     _check_settings(cfg, args.max_steps)
     cfg["out"] = output_dir(args.out)
     if cfg["tank"] is not None:   # a bad set: one line, before anything compiles
-        cfg["tank_names"] = tank_trials.check(cfg["tank"], rollout.eval_params(0, args.max_steps, **cfg["env"]))
+        cfg["tank_names"] = tank_sets.check(cfg["tank"], rollout.eval_params(0, args.max_steps, **cfg["env"]))
     return cfg
 
 
@@ -253,7 +253,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         cfg = validate_args(args)
     except (UsageError, RunDirError) as e:
         parser.error(str(e))  # exits with status 2 and the usage line
-    except tank_trials.TankSetError as e:   # a tank file's error: its own line, no usage block
+    except tank_sets.TankSetError as e:   # a tank file's error: its own line, no usage block
         parser.exit(2, f"{parser.prog}: error: {e}\n")
     try:
         cfg["out"].mkdir(exist_ok=True)

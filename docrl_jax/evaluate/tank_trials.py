@@ -23,10 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from docrl_jax.evaluate.tables import SHORT, summarize
-
-# The set's helpers live in tank_sets, below the robustness benchmark, which reads them too; the commands
-# take them from here.
-from docrl_jax.evaluate.tank_sets import ALL, TEST, TankSetError, check, load, repeat, subset, tank_index  # noqa: F401
+from docrl_jax.evaluate.tank_sets import ALL, TEST, load, repeat, subset, tank_index
 
 
 def run(policy, stack, direction: str, num_trials: int, max_steps: int, seed: int, env_kw: dict,

@@ -335,14 +335,14 @@ def _render(args, cfg: dict) -> int:
 
     from docrl_jax.envs import layouts
     from docrl_jax.envs.rendering import Renderer
-    from docrl_jax.evaluate import rollout, tank_trials
+    from docrl_jax.evaluate import rollout, tank_sets, tank_trials
     t0 = time.time()
     scenario, direction = cfg["scenario"], cfg["direction"]
     env = rollout.make_eval_env(scenario, args.max_steps, **cfg["env"])
     # Each trial's scene: the scenario's, or its tank's (trial i in tank i mod the set's size).
     if args.tank is not None:
-        names, tank_set = tank_trials.load(args.tank, env.params)
-        scene = tank_trials.tank_index(args.trials, len(names))
+        names, tank_set = tank_sets.load(args.tank, env.params)
+        scene = tank_sets.tank_index(args.trials, len(names))
         where = [f"tank {names[i]}" for i in scene]
         models = {i: layouts.mj_model(jax.tree.map(lambda x: np.asarray(x)[i], tank_set)) for i in set(scene)}
     else:

@@ -35,6 +35,7 @@ from flax import struct
 import docrl_jax.envs as envs
 from docrl_jax.algorithms import Agent, AgentState, make_agent
 from docrl_jax.config import Config, env_kwargs
+from docrl_jax.envs.curriculum import make_curriculum
 from docrl_jax.networks import expand_flag
 from docrl_jax.replay import BufferState, make_sequence_buffer
 from docrl_jax.train.evaluation import make_evaluation
@@ -102,7 +103,6 @@ def make_trainer(config: Config) -> Trainer:
     evaluation = make_evaluation(config, agent.act, init_carry, memory, env)
     pool = None
     if config.levels.sampler != "env":   # a level pool (docrl_jax/envs/curriculum.py)
-        from docrl_jax.envs.curriculum import make_curriculum
         lv = config.levels
         pool = make_curriculum(env, lv.sampler, lv.capacity, lv.refresh, lv.temperature, lv.uniform_mix,
                                keep_fields=lv.route_reward > 0)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from docrl_jax.evaluate import cli, robustness, robustness_cli, rollout, tank_trials, video
+from docrl_jax.evaluate import cli, robustness, robustness_cli, rollout, tank_sets, tank_trials, video
 
 STEPS, TRIALS = 40, 4
 # (air region, water region) of each tank, as written in its file: the starts and goals must lie inside.
@@ -68,7 +68,7 @@ def _stand_in_set(n, p):
     (tested beside them, tests/envs): this set's tanks repeated to n, so the rows' plumbing is tested here."""
     from docrl_jax.envs import structures
     calls.append((n, p))
-    return structures.HeldOutSet(tank_trials.repeat(tank_trials.load(SET[0], p)[1], n), *([None] * 4))
+    return structures.HeldOutSet(tank_sets.repeat(tank_sets.load(SET[0], p)[1], n), *([None] * 4))
 
 
 calls: list = []
@@ -165,7 +165,7 @@ def test_per_tank_table_by_hand():
             for t, n, s, c in (("a", 2, 1, 1), ("b", 0, 0, 0), ("all", 2, 1, 1))]
     md = tank_trials.markdown(rows, "set")
     assert "| a | M | 1/2 (1, 0, 0) |" in md and "| b | M | – |" in md and "| **all** | M | 1/2 (1, 0, 0) |" in md
-    np.testing.assert_array_equal(tank_trials.tank_index(5, 3), [0, 1, 2, 0, 1])
+    np.testing.assert_array_equal(tank_sets.tank_index(5, 3), [0, 1, 2, 0, 1])
 
 
 @pytest.fixture
