@@ -71,6 +71,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+# Before Brax, which imports mujoco.mjx itself: imported here first, without the notice about MJX's
+# optional Warp backend (docrl_jax.envs._quiet_import), so Brax finds it imported and nothing prints.
+from docrl_jax.envs._quiet_import import mjx  # noqa: F401
+
 try:
     import brax.envs
     from brax.envs.base import Env as _BraxEnv
