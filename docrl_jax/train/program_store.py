@@ -9,8 +9,12 @@ An entry's key is a digest of everything that shapes its program: the program's 
 devices, the versions of the packages that trace and compile it, the XLA and JAX settings that
 change code generation, and the bytes of docrl_jax's own source and scenes (an edited checkout
 never loads a stale program). A missing, unreadable or incompatible entry is a miss: the caller
-compiles as usual and the entry is written again. Entries are pickles, trusted like JAX's own
-cache: point the cache only at folders you write.
+compiles as usual and the entry is written again.
+
+Entries are pickles and JAX's cache holds machine code: loading either runs what it holds. A cache
+folder, the store's folder or an entry that another user owns or that its group or others may write
+(a cache on a shared lab file system) is therefore never read: one warning line names it and the run
+compiles (`refusal`). The folders this module creates only their owner may write.
 
 JAX may pass a program's larger constants (closed-over arrays: the MJX model, the scene's solids) as
 hidden arguments rather than inside the executable (`jax_use_simplified_jaxpr_constants`, off by
@@ -36,6 +40,8 @@ import hashlib
 import io
 import os
 import pickle
+import stat
+import sys
 import tempfile
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -77,11 +83,14 @@ def default_compile_cache() -> str:
 
 def enable_compile_cache(path: str | None) -> str | None:
     """Turns on JAX's persistent compilation cache in `path` (None: the default; 'off': disabled).
-    Returns the folder used, or None. Programs that compile in under a second are not stored."""
+    Returns the folder used, or None; also None, with a warning line, for a folder others may write
+    (`refusal`). Programs that compile in under a second are not stored."""
     path = default_compile_cache() if path is None else path
     if path.lower() in ("off", "none", ""):
         return None
-    os.makedirs(path, exist_ok=True)
+    os.makedirs(path, mode=0o700, exist_ok=True)
+    if _refused(path, os.stat(path)):
+        return None
     jax.config.update("jax_compilation_cache_dir", path)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
@@ -94,7 +103,43 @@ def folder() -> Path | None:
     cache is off (enable_compile_cache) or the run spans several processes
     (each holds only its part of a program, and they may share one folder: they compile)."""
     cache = jax.config.jax_compilation_cache_dir
-    return Path(cache) / FOLDER if cache and jax.process_count() == 1 else None
+    if not cache or jax.process_count() > 1:
+        return None
+    store = Path(cache) / FOLDER
+    try:
+        return None if _refused(store, store.stat()) else store
+    except OSError:  # not made yet: `save` makes it
+        return store
+
+
+# ------------------------------------------------------------------ whose files are loaded
+def refusal(info: os.stat_result) -> str | None:
+    """Why a cache folder or entry with this `os.stat` must not be loaded, or None: another user owns
+    it, or its group or every user may write it (they could place a pickle or an executable there)."""
+    me = _current_uid()
+    if me is not None and info.st_uid != me:
+        return f"owned by another user (uid {info.st_uid})"
+    if info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return f"writable by {'others' if info.st_mode & stat.S_IWOTH else 'its group'}"
+    return None
+
+
+def _current_uid() -> int | None:
+    return os.getuid() if hasattr(os, "getuid") else None   # no owners to compare where there are no uids
+
+
+_warned: set = set()
+
+
+def _refused(path, info: os.stat_result) -> bool:
+    """True, after one warning line on stderr (once per path), when `refusal` refuses `path`."""
+    reason = refusal(info)
+    if reason is not None and str(path) not in _warned:
+        _warned.add(str(path))
+        sys.stderr.write(f"warning: compilation cache {path} is {reason}: not loaded, the programs are compiled; "
+                         f"use a folder only you can write (--compile-cache DIR, DOCRL_JAX_COMPILE_CACHE, "
+                         f"or chmod go-w)\n")
+    return reason is not None
 
 
 @functools.lru_cache(maxsize=1)
@@ -204,6 +249,8 @@ def _read(path: Path, devices) -> tuple:
     if devices[0].platform == "cpu" and not _cpu_kernels_ready():
         raise LookupError("no loading on this CPU")
     with open(path, "rb") as f:
+        if _refused(path, os.fstat(f.fileno())):   # the file opened, whatever is at `path` later
+            raise LookupError("an entry others may have written")
         fmt, payload, trees = pickle.load(f)
     if fmt != FORMAT:
         raise LookupError(f"entry format {fmt}")
@@ -311,7 +358,7 @@ def save(store: Path, name: str, compiled: jax.stages.Compiled) -> bool:
     tmp = None
     try:
         payload, in_tree, out_tree = _serialize(compiled)
-        store.mkdir(parents=True, exist_ok=True)
+        store.mkdir(mode=0o700, parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=store, prefix=f".{name}.", suffix=".tmp")
         with os.fdopen(fd, "wb") as f:
             pickle.dump((FORMAT, payload, pickle.dumps((in_tree, out_tree), protocol=pickle.HIGHEST_PROTOCOL)), f,

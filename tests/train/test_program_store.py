@@ -111,3 +111,80 @@ def test_entry_names_follow_what_shapes_the_programs(tmp_path):
             assert program_store.store_names(easy_config(), devices)["chunk"] != base["chunk"]
     finally:
         program_store.source_digest.cache_clear()
+
+
+class _Planted:
+    """A pickle that, once loaded, makes a folder: what another user could leave in a shared cache."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return os.mkdir, (self.marker,)
+
+
+def test_entries_others_may_have_written_are_never_loaded(tmp_path, monkeypatch, capfd):
+    """An entry is a pickle: loading it runs what it holds. One another user owns, or its group or
+    anyone may write, is not opened further: one warning line, a miss (the run compiles)."""
+    import pickle
+    devices = (jax.devices()[0],)
+    store, marker = tmp_path / "programs", tmp_path / "ran"
+    store.mkdir(mode=0o700)
+    (store / "planted.bin").write_bytes(pickle.dumps(_Planted(marker)))
+    os.chmod(store / "planted.bin", 0o600)
+    # The probe can see a load: an entry of one's own is unpickled (and then is no program: a miss).
+    assert program_store.load(store, "planted", devices) is None and marker.is_dir()
+    marker.rmdir()
+    assert capfd.readouterr().err == ""
+
+    def refused(mode: int, owner_offset: int = 0) -> str:
+        monkeypatch.setattr(program_store, "_warned", set(), raising=False)
+        monkeypatch.setattr(program_store, "_current_uid", lambda: os.getuid() + owner_offset, raising=False)
+        os.chmod(store / "planted.bin", mode)
+        assert program_store.load(store, "planted", devices) is None
+        assert not marker.exists(), "the entry was unpickled"
+        err = capfd.readouterr().err
+        assert len(err.splitlines()) == 1 and str(store / "planted.bin") in err, err
+        return err
+
+    assert "writable by its group" in refused(0o620)
+    assert "writable by others" in refused(0o602)
+    assert "owned by another user" in refused(0o600, owner_offset=1)
+    # One warning per entry, however often it is asked for.
+    assert program_store.load(store, "planted", devices) is None and capfd.readouterr().err == ""
+
+
+def test_a_cache_folder_others_may_write_is_not_used(tmp_path, monkeypatch, capfd):
+    """Neither the cache folder (JAX's cache holds executables) nor the store folder inside it is used
+    when another user owns it or others may write it: one warning line each, the run compiles.
+    Folders the store makes itself only their owner may write."""
+    monkeypatch.setattr(program_store, "_warned", set(), raising=False)
+    saved = jax.config.jax_compilation_cache_dir
+    try:
+        mine = tmp_path / "mine"
+        assert program_store.enable_compile_cache(str(mine)) == str(mine)
+        assert program_store.folder() == mine / "programs"
+        f = jax.jit(lambda x: x + 1.0).lower(jnp.ones(2)).compile()
+        assert program_store.save(mine / "programs", "f", f)
+        assert os.stat(mine).st_mode & 0o077 == 0 and os.stat(mine / "programs").st_mode & 0o077 == 0
+        assert capfd.readouterr().err == ""
+
+        os.chmod(mine / "programs", 0o770)               # the store folder: not read
+        assert program_store.folder() is None
+        err = capfd.readouterr().err
+        assert len(err.splitlines()) == 1 and "programs is writable by its group" in err, err
+
+        shared = tmp_path / "shared"
+        shared.mkdir(mode=0o777)
+        os.chmod(shared, 0o1777)                         # a lab's shared folder (sticky, as /tmp)
+        jax.config.update("jax_compilation_cache_dir", None)
+        assert program_store.enable_compile_cache(str(shared)) is None
+        assert jax.config.jax_compilation_cache_dir is None and program_store.folder() is None
+        err = capfd.readouterr().err
+        assert len(err.splitlines()) == 1 and f"{shared} is writable by others" in err, err
+
+        monkeypatch.setattr(program_store, "_current_uid", lambda: os.getuid() + 1, raising=False)
+        assert program_store.enable_compile_cache(str(tmp_path / "theirs")) is None
+        assert "owned by another user" in capfd.readouterr().err
+    finally:
+        jax.config.update("jax_compilation_cache_dir", saved)
