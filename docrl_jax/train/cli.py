@@ -26,10 +26,8 @@ import os
 import time
 from pathlib import Path
 
-from rich.syntax import Syntax
-
 from docrl_jax import sharding
-from docrl_jax.config import Config, env_kwargs, load_config, packaged_config_names, parse_overrides, to_yaml
+from docrl_jax.config import Config, env_kwargs, load_config, packaged_config_names, parse_overrides
 from docrl_jax.errors import ConfigError, RunDirError
 from docrl_jax.train import program_store
 from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
@@ -101,14 +99,27 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, RunDirError) as e:
         console.print(f"[bold red]error:[/] {e}")
         return EXIT_CONFIG
-    console.print(f"[bold]run directory:[/] {run_dir}")
-    console.print(Syntax(to_yaml(config), "yaml", theme="ansi_dark"))
+    for line in launch_summary(config, run_dir):
+        console.print(line)
     console.print(f"[bold]device:[/] {sharding.device_line()}")
-    for note in notes:
-        console.print(f"[bold]chosen for this device:[/] {note}")
+    if notes:
+        console.print(f"[bold]chosen for this device:[/] {'; '.join(notes)}")
     console.print(f"[bold]compilation cache:[/] {cache or 'off'}")
     return run(config, run_dir, resume=args.resume, console=console, show_progress=not args.no_progress,
                launch_time=launch)
+
+
+def launch_summary(config: Config, run_dir: Path) -> list[str]:
+    """What a launch says of its run, in two lines; every key is in the run directory's config.yaml
+    (written by docrl_jax.train.run before anything compiles)."""
+    from docrl_jax import runs
+    a, t = config.agent, config.train
+    tank = env_kwargs(config).get("tank")
+    where = f"tanks {tank}" if tank is not None else f"env scenario {config.env.scenario}"
+    seeds = f"seed {t.seed}" if t.num_seeds == 1 else f"seeds {t.seed}-{t.seed + t.num_seeds - 1}"
+    return [f"[bold]run:[/] {config.name}: {a.algo.upper()} with an {a.actor.upper()} actor, {where}, {seeds}, "
+            f"{t.total_env_steps:,} env steps per seed",
+            f"[bold]run directory:[/] {run_dir} (full config: {run_dir / runs.CONFIG_FILE})"]
 
 
 def check_tank(config: Config) -> None:

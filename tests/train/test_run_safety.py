@@ -159,6 +159,37 @@ def test_a_third_ctrl_c_during_a_save_waits_for_it(monkeypatch):
     load_policy(d)
 
 
+# ------------------------------------------------------------------ what a launch prints
+def test_a_launch_prints_a_short_summary_and_the_run_directory_holds_the_full_config(tmp_path, monkeypatch):
+    """A few lines (the run, where its directory and full config are, the device, the choices made
+    for it, the cache) instead of every key; config.yaml holds every key, written before compiling
+    (stopped there: a Ctrl-C during the compile)."""
+    import yaml
+
+    from docrl_jax.config import config_from_dict, load_config, to_yaml
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(train_run, "compile_programs", interrupted)
+    console, out = _console()
+    d = tmp_path / "run"
+    args = ["--config", "td3_lstm", "--set", "train.num_seeds=2", "--set", "train.seed=3", "--run-dir", str(d),
+            "--compile-cache", "off", "--no-progress"]
+    with patch.object(cli, "make_console", lambda **kw: console):
+        assert cli.main(args) == cli.EXIT_INTERRUPTED
+    launch = out.getvalue().split("compiling (or loading)")[0].splitlines()
+    assert 3 <= len(launch) <= 8, launch
+    text = "\n".join(launch)
+    config = load_config("td3_lstm", {"train.num_seeds": 2, "train.seed": 3})
+    assert f"td3_lstm: TD3 with an LSTM actor, env scenario {config.env.scenario}, seeds 3-4, " \
+           f"{config.train.total_env_steps:,} env steps per seed" in text
+    assert f"run directory: {d} (full config: {d / 'config.yaml'})" in text
+    assert "actor_lr" not in text and "device:" in text
+    written = (d / "config.yaml").read_text()
+    assert written == to_yaml(config) and config_from_dict(yaml.safe_load(written)) == config
+    assert len(written.splitlines()) > 50   # every key
+
+
 # ------------------------------------------------------------------ run directories
 def test_a_directory_holding_a_run_without_checkpoint_is_not_overwritten(tmp_path):
     d = tmp_path / "started"
