@@ -264,6 +264,12 @@ def field_docs() -> dict[str, str]:
     return docs
 
 
+def config_keys() -> list[str]:
+    """Every 'section.key' a config takes, the env parameters included."""
+    from docrl_jax.envs import param_docs
+    return [k for k in field_docs() if k != "env.overrides"] + [f"env.{k}" for k in param_docs() if k != "scenario"]
+
+
 # ---------------------------------------------------------------------------------------- loading
 def packaged_configs_dir() -> Path:
     """The repository's top-level `configs/` (a source checkout), else the installed `docrl_jax.configs`."""
@@ -286,14 +292,17 @@ def resolve_config_path(name_or_path: str | os.PathLike) -> Path:
     if path.exists() and path.is_file():
         return path
     if os.sep in text or "/" in text:
-        raise ConfigError(f"config file {text!r} does not exist")
+        beside = sorted(p.name for p in path.parent.glob("*.yaml")) if path.parent.is_dir() else []
+        raise ConfigError(f"config file {text!r} does not exist"
+                          + schema.did_you_mean(path.name, beside, shown=lambda n: str(path.parent / n)))
     stem = text[:-5] if text.endswith(".yaml") else text
     packaged = packaged_configs_dir()
     candidate = packaged / f"{stem}.yaml"
     if candidate.is_file():
         return candidate
+    names = packaged_config_names()
     raise ConfigError(f"config {text!r} is neither a file nor a packaged config; packaged configs: "
-                      f"{packaged_config_names()}")
+                      f"{', '.join(names)}{schema.did_you_mean(stem, names)}")
 
 
 def parse_overrides(items: list[str] | None) -> dict[str, Any]:
@@ -419,15 +428,20 @@ def config_from_dict(raw: dict, overrides: dict[str, Any] | None = None, source:
         if len(parts) == 1 and parts[0] == "name":
             raw["name"] = value
             continue
-        if len(parts) != 2 or parts[0] not in SECTIONS:
-            raise ConfigError(f"override {key!r}: expected section.key with section one of {list(SECTIONS)}")
+        if len(parts) == 2 and parts[0] not in SECTIONS:
+            raise ConfigError(f"override {key!r}: unknown section {parts[0]!r}; sections: {', '.join(SECTIONS)}"
+                              + schema.did_you_mean(parts[0], SECTIONS, shown=lambda sec: f"{sec}.{parts[1]}"))
+        if len(parts) != 2:  # a bare key may be one of a section's: name it whole
+            raise ConfigError(f"override {key!r}: expected section.key (sections: {', '.join(SECTIONS)})"
+                              + schema.did_you_mean(parts[-1], config_keys(), key=lambda k: k.split(".")[-1]))
         section = raw.setdefault(parts[0], {})
         if not isinstance(section, dict):
             raise ConfigError(f"{source}: section {parts[0]!r} must be a mapping")
         section[parts[1]] = value
     unknown = sorted(set(raw) - {"name", *SECTIONS})
     if unknown:
-        raise ConfigError(f"unknown top-level key(s) {unknown}; valid keys: {['name', *SECTIONS]}")
+        raise ConfigError(f"{source}: unknown top-level key {_first(unknown)}; valid keys: name, "
+                          f"{', '.join(SECTIONS)}{schema.did_you_mean(unknown[0], ['name', *SECTIONS])}")
     alongside_auto = isinstance(raw.get("train"), dict) and raw["train"].get("eval_alongside") == "auto"
     raw = resolve_auto(raw, backend, notes)
     name = _coerce("name", raw.get("name", Config.name), str, None)
@@ -458,18 +472,23 @@ def _build_section(sec: str, cls, values: dict) -> Any:
             kwargs[key] = _coerce(f"{sec}.{key}", value, hints[key], fields[key].metadata["choices"])
         else:
             extra[key] = value
-    if extra and sec != "env":
-        raise ConfigError(f"unknown key(s) {sorted(f'{sec}.{k}' for k in extra)}; valid keys in {sec!r}: "
-                          f"{sorted(fields)}")
-    if sec == "env":
-        from docrl_jax.envs import param_docs
-        valid_env = param_docs()
-        bad = sorted(set(extra) - set(valid_env))
-        if bad:
-            raise ConfigError(f"unknown key(s) {[f'env.{k}' for k in bad]}; valid keys in 'env': "
-                              f"{sorted(fields)} plus the EnvParams fields {sorted(set(valid_env) - {'scenario'})}")
+    valid, listed = set(fields), f"the fields of {cls.__name__} in {schema.declared_in(cls)}"
+    if sec == "env":  # every other key under env: is an EnvParams field
+        from docrl_jax.envs import EnvParams, param_docs
+        valid |= set(param_docs())
+        listed = (f"{', '.join(f'env.{k}' for k in fields)} and the fields of EnvParams in "
+                  f"{schema.declared_in(EnvParams)}")
         kwargs["overrides"] = tuple(sorted((k, _freeze(v)) for k, v in extra.items()))
+    unknown = sorted(set(extra) - valid)
+    if unknown:
+        raise ConfigError(f"unknown key {_first([f'{sec}.{k}' for k in unknown])}; valid keys: {listed}"
+                          + schema.did_you_mean(unknown[0], valid, shown=lambda k: f"{sec}.{k}"))
     return cls(**kwargs)
+
+
+def _first(names: list[str]) -> str:
+    """The first of the unknown names, quoted, and how many more there are: an error names one key."""
+    return repr(names[0]) + (f" (and {len(names) - 1} more: {', '.join(map(repr, names[1:]))})" if names[1:] else "")
 
 
 def _freeze(v: Any) -> Any:

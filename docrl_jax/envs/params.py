@@ -12,7 +12,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterable
 
 from docrl_jax import schema
 from docrl_jax.schema import documented
@@ -424,12 +424,21 @@ def _validate_ranges(p: EnvParams) -> None:
         ordered(name, lambda v: v >= 0, lambda v: v <= MAX_LATENCY, f"in [0, {MAX_LATENCY}] control steps", True)
 
 
-def make_params(scenario: int = 2, **overrides: Any) -> EnvParams:
-    """EnvParams for `scenario` with keyword overrides; unknown names raise ValueError listing valid ones."""
+def check_names(names: Iterable[str]) -> None:
+    """Raises ValueError naming the first name that is no EnvParams field, the fields nearest it and where
+    all are declared."""
     valid = param_docs()
-    unknown = sorted(set(overrides) - set(valid))
+    unknown = [n for n in names if n not in valid]
     if unknown:
-        raise ValueError(f"unknown env parameter(s) {unknown}; valid names: {sorted(valid)}")
+        more = f" (and {len(unknown) - 1} more: {', '.join(map(repr, unknown[1:]))})" if unknown[1:] else ""
+        raise ValueError(f"unknown env parameter {unknown[0]!r}{more}; valid names: the fields of EnvParams in "
+                         f"{schema.declared_in(EnvParams)}{schema.did_you_mean(unknown[0], valid)}")
+
+
+def make_params(scenario: int = 2, **overrides: Any) -> EnvParams:
+    """EnvParams for `scenario` with keyword overrides; an unknown name raises ValueError naming the
+    nearest valid ones (`check_names`)."""
+    check_names(overrides)
     clean = {k: tuple(v) if isinstance(v, list) else v for k, v in overrides.items()}
     # Accept ints where floats are documented (e.g. wind_sigma=1), reject other types in validate().
     defaults = EnvParams()
