@@ -6,7 +6,8 @@ and the environment's parameters (docrl_jax.envs.params).
     field_docs(TrainConfig, "train")   -> {"train.x": ...}
     fail("train.x", -1, "must be >= 0", error=ConfigError)   # raises "train.x=-1: must be >= 0"
     did_you_mean("lr_actr", ["actor_lr", "gamma"])  -> "; did you mean 'actor_lr'?"
-    declared_in(TrainConfig)                        -> "docrl_jax/config.py"
+    first_and_count(["a", "b", "c"])                -> "'a' (and 2 more: 'b', 'c')"
+    declared_in(TrainConfig)                        -> "docrl_jax/config/sections.py"
 
 Every field carries its documentation where it is declared (CleanRL style), so error messages, the
 README and `--help` texts read one source, and every error names the key, the bad value and why; an
@@ -62,6 +63,13 @@ def did_you_mean(name: str, valid: Iterable[str], *, key: Callable[[str], str] =
         return ""
     *rest, last = near
     return f"; did you mean {', '.join(rest) + ' or ' if rest else ''}{last}?"
+
+
+def first_and_count(names: list[str]) -> str:
+    """"'a' (and 2 more: 'b', 'c')": an error about unknown names names the first (its suggestions are
+    for it) and still lists the others, so a file with several typos is not fixed one run at a time."""
+    more = f" (and {len(names) - 1} more: {', '.join(map(repr, names[1:]))})" if names[1:] else ""
+    return repr(names[0]) + more
 
 
 def declared_in(cls) -> str:
