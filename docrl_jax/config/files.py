@@ -8,8 +8,6 @@ import os
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from docrl_jax import schema
 from docrl_jax.config.sections import SECTIONS, Config
 from docrl_jax.errors import ConfigError
@@ -53,6 +51,7 @@ def compose(path: Path, chain: tuple[Path, ...]) -> dict:
       extends: NAME   -- start from config NAME; this file's keys replace its keys one by one
       SECTION: NAME   -- a section (env, agent, replay, train) is config NAME's section, whole
     NAME is a file relative to this one if there is one, else as `--config` takes it (a packaged name)."""
+    import yaml  # here: the many modules that import docrl_jax.config for `Config` need no parser (~14 ms)
     path = path.resolve()
     if path in chain:
         raise ConfigError("configs extend each other in a cycle: " + " -> ".join(str(p) for p in (*chain, path)))
@@ -101,4 +100,6 @@ def to_dict(c: Config) -> dict[str, Any]:
 
 
 def to_yaml(c: Config) -> str:
+    """The config as YAML (what a run directory's config.yaml holds); loads back to the same Config."""
+    import yaml  # (as in compose)
     return yaml.safe_dump(to_dict(c), sort_keys=False)

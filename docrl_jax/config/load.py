@@ -10,8 +10,6 @@ import os
 import typing
 from typing import Any
 
-import yaml
-
 from docrl_jax import schema
 from docrl_jax.config.auto import resolve_auto, settle_eval_alongside
 from docrl_jax.config.checks import validate
@@ -24,6 +22,7 @@ from docrl_jax.errors import ConfigError
 def parse_overrides(items: list[str] | None) -> dict[str, Any]:
     """['agent.actor_lr=3e-4', 'env.wind=false'] -> {'agent.actor_lr': 0.0003, 'env.wind': False}.
     Values are YAML scalars (so lists work too: env.z_bounds=[-1.0,4.0])."""
+    import yaml  # (as in files.compose: only reading a config needs the parser)
     out: dict[str, Any] = {}
     for item in items or []:
         if "=" not in item:
