@@ -1,5 +1,6 @@
 """The paper's evaluation protocol: N trials per scenario and direction, Table I, CSV/JSON, figures.
 
+    python -m docrl_jax.evaluate --policy td3_lstm --trials 20 --scenarios 2     # a shipped policy (CPU: ~1 min)
     python -m docrl_jax.evaluate --policy bba --trials 100 --scenarios 1,2,3 --out results/bba
     python -m docrl_jax.evaluate --run runs/docrl_d --seed-index 0 --out results/docrl_d
     python -m docrl_jax.evaluate --run runs/td3_seed0 runs/td3_seed1 runs/td3_seed2 --out results/td3  # 3 launches
@@ -7,38 +8,43 @@
     python -m docrl_jax.evaluate --run runs/docrl_d --tank gallery --trials 20 --out results/tanks
 
 The protocol itself: `docrl_jax.evaluate.protocol`; the rollout and per-trial metrics: `rollout`;
-statistics, tables and output files: `tables`; trials in a tank set (`--tank`): `tank_trials`. This
-module is the command alone: its arguments, their checks (each bad input one line, before anything
-compiles) and which policies of which runs are evaluated; it is over the package's ~350-line guide
-because each of the four inputs (--policy, --run, --curves, --tank) brings its own checks.
+statistics, tables and output files: `tables`; trials in a tank set (`--tank`): `tank_trials`; the
+shipped policies (`--policy`): `docrl_jax.pretrained`. This module is the command's arguments and
+their checks (each bad input one line, no usage block, before anything compiles); what it then runs
+is `cli_run`.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
-import time
-from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any, Sequence
 
-import numpy as np
 import yaml
 
-from docrl_jax import runs
+from docrl_jax import pretrained, runs
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import rollout, tank_sets, tank_trials
+from docrl_jax.evaluate import rollout, tank_sets
 from docrl_jax.evaluate.tank_sets import TankSetError
-from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, NOMINAL_YAW, SCENARIOS, TrialSpec
-from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, markdown_table, trial_table, write_outputs
+from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, SCENARIOS
 
-POLICIES = ("bba",)
+# The built-in policies that need no run directory and fly in every command with --policy. The
+# robustness benchmark (robustness_cli) reads this name and flies the baselines alone.
+POLICIES = pretrained.BASELINES
 
 
 class UsageError(ValueError):
     """A bad command line; the message lists the valid choices."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, `PROG: error: MESSAGE`, exit status 2, without the
+    usage block (the message names the valid choices; --help shows the rest)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def parse_scenarios(text: str) -> list[int]:
@@ -123,13 +129,15 @@ def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARI
 
 def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.policy import CHECKPOINT_POLICIES
-    p = argparse.ArgumentParser(prog="python -m docrl_jax.evaluate", description=__doc__.split("\n\n")[0],
+    p = OneLineParser(prog="python -m docrl_jax.evaluate", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--run", metavar="RUN_DIR", nargs="+",
                      help="a trainer run directory (config.yaml + checkpoints); several run directories of one "
                           "config (separate launches, e.g. one per seed) are evaluated as the seeds of one method")
-    src.add_argument("--policy", metavar="NAME", help=f"a built-in policy: {', '.join(POLICIES)}")
+    src.add_argument("--policy", metavar="NAME",
+                     help=f"a built-in policy: {', '.join(pretrained.POLICY_NAMES)} (the behaviour-based baseline, then "
+                          "the trained policies shipped in the package, docrl_jax/pretrained/README.md)")
     p.add_argument("--seed-index", default="all",
                    help="seed(s) of --run to evaluate, comma-separated, e.g. 0 or 0,1,2; default 'all': every seed "
                         "the run trained (train.num_seeds in its config.yaml). Several seeds also give a table of "
@@ -138,7 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
                    help="with --run: the final policy of the latest checkpoint (default; what tables report) "
                         "or each seed's best evaluated policy kept beside it (train.track_best_policy)")
-    p.add_argument("--label", help="method name in the tables (default: 'BBA' or the run dir's name)")
+    p.add_argument("--label", help="method name in the tables (default: the --policy name, 'BBA' for bba, or the run dir's name)")
     p.add_argument("--trials", type=int, default=100, help="trials per scenario and direction (default 100)")
     p.add_argument("--scenarios", default=None, help="comma-separated scenarios (default 1,2,3)")
     p.add_argument("--tank", metavar="PATH|DIR|NAME",
@@ -170,10 +178,9 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     from docrl_jax.baselines.bba import DEPTH_PHASES
     if args.run is None and args.policy is None and not args.curves:
         raise UsageError("nothing to do: give --run RUN_DIR or --policy NAME "
-                         f"(valid policies: {', '.join(POLICIES)}), and/or --curves RUN_DIR ...")
-    if args.policy is not None and args.policy.lower() not in POLICIES:
-        raise UsageError(f"--policy {args.policy!r}: unknown policy; valid choices: {', '.join(POLICIES)} "
-                         "(or --run RUN_DIR for a trained agent)")
+                         f"(valid policies: {', '.join(pretrained.POLICY_NAMES)}), and/or --curves RUN_DIR ...")
+    if args.policy is not None:
+        args.policy = pretrained.check_name(args.policy.lower())
     if args.trials <= 0:
         raise UsageError(f"--trials {args.trials}: must be a positive integer")
     if args.max_steps <= 0:
@@ -229,11 +236,14 @@ def _run_config(run_dir: str | os.PathLike) -> dict:
         return yaml.safe_load(f) or {}
 
 
-def run_vehicle(run_dir: str | os.PathLike | None) -> dict:
+def run_vehicle(run_dir: str | os.PathLike | None, policy: str | None = None) -> dict:
     """The vehicle settings of a run's config.yaml (`envs.params.VEHICLE_FIELDS`, e.g. env.vel_i_rate),
-    which its policy is flown in; {} for a built-in policy (run_dir None)."""
+    which its policy is flown in; a shipped policy's (`policy`, a --policy name) when run_dir is None;
+    {} for a baseline."""
     from docrl_jax.envs.params import vehicle_overrides
-    return {} if run_dir is None else vehicle_overrides(_run_config(run_dir).get("env") or {})
+    if run_dir is None:
+        return pretrained.vehicle(policy) if policy in pretrained.PRETRAINED else {}
+    return vehicle_overrides(_run_config(run_dir).get("env") or {})
 
 
 def check_run_dir(run_dir: str | os.PathLike) -> Path:
@@ -278,154 +288,19 @@ def run_num_seeds(run_dir: str | os.PathLike) -> int:
                          "not a positive integer; pass --seed-index explicitly") from None
 
 
-def policy_sources(args, seed_indices: list[int] | None) -> list[tuple[str, int]]:
-    """(run dir, seed index within it) for each evaluated seed of --run, in the order given;
-    seed_indices None = every seed each run trained."""
-    return [(run, s) for run in args.run
-            for s in (seed_indices if seed_indices is not None else range(run_num_seeds(run)))]
-
-
-def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple[Any, str]:
-    """(policy, label) for --policy or for one seed of the run directory `run`. Several run directories
-    are labelled by their config's name, one by its folder's name."""
-    if args.policy is not None:
-        from docrl_jax.evaluate.rollout import policy_for   # one BBA per env: the renderer's and benchmark's too
-        policy, label = policy_for(env, None, 0, "final", args.bba_depth_phase)
-        return policy, args.label or label
-    policy = runs.load_policy(run, seed_index=seed_index, which=args.which)
-    print(f"{Path(run).name}: {policy.source}", flush=True)
-    name = config_name(run) if len(args.run) > 1 else Path(run).resolve().name
-    return policy, args.label or name + (" (best)" if args.which == "best" else "")
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         cfg = validate_args(args)
-    except (UsageError, RunDirError) as e:
-        parser.error(str(e))  # exits with status 2 and the usage line
-    except TankSetError as e:   # a tank file's error: its own line, no usage block
-        parser.exit(2, f"{parser.prog}: error: {e}\n")
+    except (UsageError, RunDirError, pretrained.UnknownPolicy, TankSetError) as e:
+        parser.error(str(e))   # one line, exit status 2
+    from docrl_jax.evaluate.cli_run import evaluate
     try:
-        return _evaluate(args, cfg, parser, argv)
+        return evaluate(args, cfg, parser, argv)
     except OSError as e:  # an output folder that cannot be written: one line, as the other bad inputs
         print(f"error: {os_error_line(e)}", file=sys.stderr)
         return 2
-
-
-def _evaluate(args, cfg: dict, parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int:
-    """Runs what the checked arguments ask for: curves, then the protocol's trials; writes the outputs."""
-    out_dir = cfg["out"]
-    if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    if args.curves:
-        from docrl_jax.evaluate import curves
-        csvs = [curves.find_metrics_csv(d) for d in args.curves]
-        paths = curves.plot_learning_curves(csvs, out_dir)
-        print("learning curves:", ", ".join(str(p) for p in paths))
-    if args.run is None and args.policy is None:
-        return 0
-
-    import jax
-    if args.run is None:
-        sources, seed_indices = [(None, None)], [None]
-    else:   # one run: its own seed indices; several: the evaluated seeds numbered 0, 1, ... in order
-        sources = policy_sources(args, cfg["seed_indices"])
-        seed_indices = [s for _, s in sources] if len(args.run) == 1 else list(range(len(sources)))
-    # Each run's agent settings: runs with the same ones share their networks (and compiled rollout).
-    agents = {run: json.dumps(_run_config(run).get("agent"), sort_keys=True) for run in args.run or []}
-    vehicles = {seed_index: run_vehicle(run) for seed_index, (run, _) in zip(seed_indices, sources)}
-    rows, trial_rows, tank_rows = [], [], []
-    meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
-            "run": args.run, "which": args.which if args.run else None, "policy": args.policy,
-            "seed_indices": seed_indices, "policy_sources": {},
-            "seed_runs": {str(i): {"run": run, "seed_index": s} for i, (run, s) in zip(seed_indices, sources)}
-            if args.run is not None else {}, "trials": args.trials,
-            "max_steps": args.max_steps, "seed": args.seed, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
-            "vehicles": {str(i): vehicle for i, vehicle in vehicles.items()},
-            "trial_spec": asdict(TrialSpec()), "nominal_yaw": NOMINAL_YAW,
-            "bba_depth_phase": args.bba_depth_phase if args.policy else None,
-            "tank": args.tank, "tank_names": cfg.get("tank_names"),
-            "jax_backend": jax.default_backend(), "devices": [str(d) for d in jax.devices()]}
-    policies: dict = {}
-    first_with_nets: dict = {}   # agent settings -> the first policy loaded with them
-    t_start = time.time()
-
-    def report(row, trials, env, start, goal, stack=None):
-        seed_index = row["seed_index"]
-        tag = "" if seed_index is None else f" seed {seed_index}"
-        fresh = row["compile_s"] is not None
-        where = f"tanks {args.tank}" if args.tank else f"scenario {row['scenario']}"
-        print(f"{where} {SHORT[row['direction']]} {row['method']}{tag}: {row['successes']}/"
-              f"{row['trials']} success, {row['collisions']} collisions, {row['out_of_bounds']} out of bounds, "
-              f"{row['timeouts']} time-outs ({row['compile_s'] if fresh else row['run_s']:.1f} s"
-              f"{' incl. compile' if fresh else ''})", flush=True)
-        if out_dir is None:
-            return
-        stem = f"s{row['scenario']}_{row['direction']}" + ("" if seed_index is None else f"_seed{seed_index}")
-        extra = {"tank": trials["tank"], "tank_names": np.asarray(cfg["tank_names"])} if args.tank else {}
-        np.savez_compressed(out_dir / f"trajectories_{stem}.npz", positions=trials["positions"].astype(np.float32),
-                            steps=trials["steps"], outcome=trials["outcome"], start=np.asarray(start),
-                            goal=np.asarray(goal), **extra)
-        if args.figures > 0 and args.tank:
-            tank_trials.plot_flown(out_dir / f"trajectory_{stem}", stack, cfg["tank_names"], trials,
-                                   f"{row['method']}{tag}, {SHORT[row['direction']]}", args.figures)
-        elif args.figures > 0:
-            from docrl_jax.evaluate import plotting
-            plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"], trials["outcome"],
-                                       start, goal, out_dir / f"trajectory_{stem}.png",
-                                       title=f"{row['method']}{tag}, scenario {row['scenario']}, "
-                                             f"{SHORT[row['direction']]}", max_trajectories=args.figures)
-
-    for scenario in cfg["scenarios"]:
-        for seed_index, (run, run_seed) in zip(seed_indices, sources):
-            env_kw = rollout.flown_env(vehicles[seed_index], cfg["env"])
-            env = rollout.make_eval_env(scenario, args.max_steps, **env_kw)
-            if seed_index not in policies:
-                try:
-                    policy, method = load_policy_for(args, env, run_seed, run)
-                except RunDirError as e:
-                    parser.error(str(e))
-                # Seeds with the same agent settings share their networks: keep the first one's
-                # functions so the compiled rollout (cached per act function) serves every seed.
-                nets = agents.get(run)
-                if nets in first_with_nets:
-                    policy = replace(first_with_nets[nets], params=policy.params, source=policy.source)
-                else:
-                    first_with_nets[nets] = policy
-                policies[seed_index] = (policy, method)
-                if policy.source:
-                    meta["policy_sources"][str(seed_index)] = policy.source
-            policy, method = policies[seed_index]
-            if args.tank is not None:
-                def tank_report(row, trials, per_tank, names, stack):
-                    report(row, trials, env, trials["start_positions"], trials["goals"], stack)
-                for row, trials, per_tank in tank_trials.evaluate_policy(
-                        policy, method, args.tank, cfg["directions"], args.trials, args.max_steps, args.seed, env_kw,
-                        seed_index, tank_report):
-                    rows.append(row)
-                    tank_rows += per_tank
-                    trial_rows += [{**t, "seed_index": seed_index, "tank": cfg["tank_names"][i]} for t, i in
-                                   zip(trial_table(method, 0, row["direction"], trials), trials["tank"])]
-                continue
-            for row, trials in rollout.evaluate_policy(policy, method, [scenario], cfg["directions"], args.trials,
-                                                       args.max_steps, args.seed, env_kw, seed_index, report):
-                rows.append(row)
-                trial_rows += [{**t, "seed_index": seed_index}
-                               for t in trial_table(method, scenario, row["direction"], trials)]
-    meta["wall_time_s"] = round(time.time() - t_start, 2)
-    aggs = aggregate_seeds(rows) if args.run is not None else []
-    print(markdown_table(rows, paper=args.tank is None, seed_rows=aggs))
-    if args.tank is not None:
-        print(tank_trials.markdown(tank_rows, args.tank))
-    if out_dir is None:
-        print(f"nothing written: pass --out DIR to keep the tables, trials and figures ({meta['wall_time_s']} s)")
-        return 0
-    write_outputs(out_dir, rows, trial_rows, meta, aggs)
-    tanks = ", " + ", ".join(p.name for p in tank_trials.write(out_dir, tank_rows, args.tank)) if args.tank else ""
-    print(f"wrote {out_dir}/results.md, results.csv, results.json, trials.csv{tanks} ({meta['wall_time_s']} s)")
-    return 0
 
 
 if __name__ == "__main__":
