@@ -1,5 +1,6 @@
 """`python -m docrl_jax.render`: the evaluator's trials drawn by MuJoCo's renderer, as an MP4 or a GIF.
 
+    python -m docrl_jax.render        # the shipped generalist's first scenario-2 W-A trial -> flight.gif
     python -m docrl_jax.render --run runs/d --scenario 2 --direction water_to_air --out wa.mp4
     python -m docrl_jax.render --policy bba --scenario 3 --direction air_to_water --trials 3 --out bba.gif
     python -m docrl_jax.render --run runs/d --direction water_to_air --trials 1 --of 100 --out first.gif
@@ -36,6 +37,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from docrl_jax import pretrained
 from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
@@ -48,6 +50,11 @@ _ALIASES = {"a-w": "air_to_water", "w-a": "water_to_air", "aw": "air_to_water", 
 INSTALL = "pip install -e '.[render]'"
 HOLD_S = 1.0        # each trial's last frame (its outcome) stays this long
 RANDOM_SALT = 7     # random trials' keys: fold_in(fold_in(PRNGKey(seed), scenario), RANDOM_SALT + i)
+# What the command draws without --run or --policy: a shipped policy's success (its first scenario-2
+# W-A trial, 147 steps), a GIF of 2.7 MB at the default size.
+DEFAULT_POLICY = "sac_mlp_generalist"
+DEFAULT_OUT = "flight.gif"
+GIF_EVERY = 2       # a GIF's default --every
 
 
 class UsageError(ValueError):
@@ -182,12 +189,15 @@ def parse_direction(text: str) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.envs.rendering import CAMERAS
+    from docrl_jax.evaluate.cli import OneLineParser
     from docrl_jax.policy import CHECKPOINT_POLICIES
-    p = argparse.ArgumentParser(prog="python -m docrl_jax.render", description=__doc__.split("\n\n")[0],
+    p = OneLineParser(prog="python -m docrl_jax.render", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory: its final policy (or --which best)")
-    src.add_argument("--policy", metavar="NAME", help="a built-in policy: bba")
+    src.add_argument("--policy", metavar="NAME",
+                     help=f"a built-in policy: {', '.join(pretrained.POLICY_NAMES)} (default without --run: "
+                          f"{DEFAULT_POLICY}, shipped in the package)")
     p.add_argument("--seed-index", type=int, default=0, help="which seed of --run (default 0)")
     p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES, help="with --run: final (default) or best")
     p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
@@ -214,8 +224,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=10.0,
                    help="frames per second of the video (default 10; a control step is 0.2 s, so 5 is real time "
                         "with --every 1)")
-    p.add_argument("--every", type=int, default=1, metavar="K", help="draw every K-th control step (default 1)")
-    p.add_argument("--out", required=True, metavar="FILE", help="the video: FILE.mp4 (H.264) or FILE.gif")
+    p.add_argument("--every", type=int, default=None, metavar="K",
+                   help=f"draw every K-th control step (default {GIF_EVERY} for a GIF, whose frames are stored whole "
+                        "(~36 KB each at 640x240), 1 for an MP4)")
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="FILE",
+                   help=f"the video: FILE.mp4 (H.264) or FILE.gif (default {DEFAULT_OUT})")
     return p
 
 
@@ -224,10 +237,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     from docrl_jax.baselines.bba import DEPTH_PHASES
     from docrl_jax.evaluate import rollout
     from docrl_jax.evaluate.cli import check_run_dir, parse_env_overrides, run_vehicle
-    if args.run is None and args.policy is None:
-        raise UsageError("nothing to draw: give --run RUN_DIR or --policy bba")
-    if args.policy is not None and args.policy.lower() != "bba":
-        raise UsageError(f"--policy {args.policy!r}: unknown policy; valid choices: bba (or --run RUN_DIR)")
+    if args.run is None:
+        args.policy = pretrained.check_name((args.policy or DEFAULT_POLICY).lower())
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
     if args.tank is not None and args.scenario is not None:
@@ -239,6 +250,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     direction = parse_direction(args.direction)
     if args.tank is not None and direction == "random":
         raise UsageError("--direction random: with --tank, give air_to_water (A-W) or water_to_air (W-A)")
+    if args.every is None:
+        args.every = GIF_EVERY if Path(args.out).suffix.lower() == ".gif" else 1
     for flag, value in (("--trials", args.trials), ("--max-steps", args.max_steps), ("--every", args.every)):
         if value <= 0:
             raise UsageError(f"{flag} {value}: must be a positive integer")
@@ -274,7 +287,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         env = parse_env_overrides(args.env, [scenario])
     except ValueError as e:   # the evaluator's UsageError
         raise UsageError(str(e)) from None
-    env = rollout.flown_env(run_vehicle(args.run), env)
+    env = rollout.flown_env(run_vehicle(args.run, args.policy), env)
     cfg = {"direction": direction, "env": env, "out": out, "scenario": scenario}
     if args.tank is not None:
         from docrl_jax.evaluate.tank_sets import check
@@ -314,10 +327,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         cfg = validate_args(args)
-    except (UsageError, RunDirError) as e:
-        parser.error(str(e))  # exits with status 2 and the usage line
-    except TankSetError as e:   # a tank file's error: its own line, no usage block
-        parser.exit(2, f"{parser.prog}: error: {e}\n")
+    except (UsageError, RunDirError, pretrained.UnknownPolicy, TankSetError) as e:
+        parser.error(str(e))   # one line, exit status 2
     try:
         return _render(args, cfg)
     except (RenderError, RunDirError) as e:
@@ -351,7 +362,10 @@ def _render(args, cfg: dict) -> int:
     with contextlib.ExitStack() as contexts:
         renderers = {i: contexts.enter_context(Renderer(m, env.params, args.width, args.height, args.camera,
                                                         fan=not args.no_fan)) for i, m in models.items()}
-        policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase)
+        if args.policy in pretrained.PRETRAINED:
+            policy, label = pretrained.load(args.policy), args.policy
+        else:
+            policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase)
         if getattr(policy, "source", ""):
             print(f"{label}: {policy.source}", flush=True)
         if args.tank is not None:
