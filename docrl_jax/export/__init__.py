@@ -4,7 +4,10 @@ reference, with a `policy.json` manifest (docs/DEPLOY.md).
     from docrl_jax.export import export_policy
     manifest = export_policy("runs/d", "export/d", seed_index=0, which="final")
 
+    manifest = export_shipped("td3_lstm", "export/td3_lstm")        # a policy shipped in the package
+
     python -m docrl_jax.export --run runs/d --out export/d      # the command (docrl_jax.export.cli)
+    python -m docrl_jax.export --policy td3_lstm --out export/td3_lstm
 
 Every export checks itself before it writes the manifest: each artefact, loaded back from the
 directory, is run over a sequence of observations (its carry fed back) beside the JAX actor, and the
@@ -153,4 +156,15 @@ def export_policy(run_dir: str | Path, out_dir: str | Path, seed_index: int = 0,
     return export_actor(config, policy.params, out_dir, source, formats, force, opset, platforms)
 
 
-__all__ = ["export_policy", "export_actor", "prepare_out_dir", "check_formats", "FORMATS", "CHECK_TOLERANCE"]
+def export_shipped(name: str, out_dir: str | Path, formats: Sequence[str] = FORMATS, force: bool = False,
+                   opset: int = DEFAULT_OPSET, platforms: Sequence[str] = ("cpu",)) -> dict[str, Any]:
+    """Exports the policy `name` shipped in the package (docrl_jax.pretrained) to `out_dir`; returns the
+    manifest. Raises as `export_policy`, and pretrained.UnknownPolicy for a name it does not ship."""
+    from docrl_jax import pretrained
+    formats = check_formats(formats)
+    policy = pretrained.load(name)
+    source = {"shipped_policy": name, "policy": policy.source}
+    return export_actor(pretrained.config(name), policy.params, out_dir, source, formats, force, opset, platforms)
+
+
+__all__ = ["export_policy", "export_shipped", "export_actor", "prepare_out_dir", "check_formats", "FORMATS", "CHECK_TOLERANCE"]

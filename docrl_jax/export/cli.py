@@ -1,10 +1,11 @@
 """`python -m docrl_jax.export`: a trained run's actor as deployment artefacts (docs/DEPLOY.md).
 
+    python -m docrl_jax.export --policy td3_lstm --out export/td3_lstm     # a policy shipped in the package
     python -m docrl_jax.export --run runs/d --out export/d
     python -m docrl_jax.export --run runs/d --seed-index 2 --which best --out export/d2_best
     python -m docrl_jax.export --run runs/d --out export/d --formats stablehlo,numpy --force
 
-Bad input (a missing run, a seed index the run does not have, --which best on a run that kept no
+Bad input (an unknown --policy, a missing run, a seed index the run does not have, --which best on a run that kept no
 best policy, an --out that cannot be written or already holds an export, the ONNX format without
 its packages) is one line on stderr and exit status 2, before anything is converted.
 """
@@ -15,6 +16,7 @@ import argparse
 import sys
 from typing import Sequence
 
+from docrl_jax import pretrained
 from docrl_jax.errors import ExportError, RunDirError, os_error_line
 from docrl_jax.export.artefacts import DEFAULT_OPSET, FORMATS
 
@@ -22,11 +24,14 @@ PROG = "python -m docrl_jax.export"
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from docrl_jax.evaluate.cli import OneLineParser
     from docrl_jax.policy import CHECKPOINT_POLICIES
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--run", metavar="RUN_DIR", required=True,
-                   help="a trainer run directory (config.yaml + checkpoints)")
+    p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory (config.yaml + checkpoints)")
+    src.add_argument("--policy", metavar="NAME",
+                     help=f"a trained policy shipped in the package: {', '.join(pretrained.PRETRAINED)}")
     p.add_argument("--seed-index", type=int, default=0, help="which seed of the run (default 0)")
     p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
                    help="the final policy of the latest checkpoint (default) or the seed's best evaluated one")
@@ -41,6 +46,16 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _shipped(name: str) -> str:
+    """A --policy name the export takes: a shipped policy (bba is a controller, not a network)."""
+    name = name.lower()
+    if name not in pretrained.PRETRAINED:
+        raise pretrained.UnknownPolicy(f"--policy {name!r}: valid choices: {', '.join(pretrained.PRETRAINED)} (the "
+                                       "trained policies shipped in the package; bba is a controller, not a network "
+                                       "to export), or --run RUN_DIR")
+    return name
+
+
 def _fail(message: str) -> int:
     print(f"{PROG}: error: {message}", file=sys.stderr)
     return 2
@@ -48,7 +63,7 @@ def _fail(message: str) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from docrl_jax.export import check_formats, export_policy
+    from docrl_jax.export import check_formats, export_policy, export_shipped
     formats = [f.strip() for f in args.formats.split(",") if f.strip()]
     platforms = tuple(p.strip() for p in args.platforms.split(",") if p.strip())
     try:
@@ -57,9 +72,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not platforms:
             raise ExportError("--platforms: give at least one, e.g. cpu")
         check_formats(formats)
-        result = export_policy(args.run, args.out, seed_index=args.seed_index, which=args.which, formats=formats,
-                               force=args.force, opset=args.opset, platforms=platforms)
-    except (RunDirError, ExportError, ImportError) as e:
+        if args.policy is not None and (args.which != "final" or args.seed_index != 0):
+            raise ExportError("--which and --seed-index choose within a run: a shipped --policy is one seed's final "
+                              "policy")
+        if args.policy is not None:
+            result = export_shipped(_shipped(args.policy), args.out, formats=formats, force=args.force,
+                                    opset=args.opset, platforms=platforms)
+        else:
+            result = export_policy(args.run, args.out, seed_index=args.seed_index, which=args.which,
+                                   formats=formats, force=args.force, opset=args.opset, platforms=platforms)
+    except (RunDirError, ExportError, ImportError, pretrained.UnknownPolicy) as e:
         return _fail(str(e))
     except OSError as e:   # an --out that cannot be made or written
         return _fail(os_error_line(e))
