@@ -84,11 +84,14 @@ def is_primary() -> bool:
 
 # ------------------------------------------------------------------------------------ devices
 def device_line() -> str:
-    """What a run is on, for the console: 'GPU: NVIDIA H100 80GB HBM3 (1 device)' or a CPU warning."""
+    """What a run is on, for the console: 'GPU: NVIDIA H100 80GB HBM3 (1 device)', or on a CPU that
+    training needs a GPU and what runs here in minutes instead (the policies shipped in the package)."""
     devs = jax.devices()
     if devs[0].platform == "cpu":
-        return (f"CPU ({os.cpu_count()} cores): no GPU found, training will be slow; the packaged defaults "
-                f"are sized for one GPU (see the ETA)")
+        return (f"CPU ({os.cpu_count()} cores): no GPU found. Training needs a GPU (the packaged configs learn "
+                "nothing here in minutes; see the ETA). To fly trained policies on this CPU instead: "
+                "python -m docrl_jax.evaluate --policy td3_lstm --trials 10 --scenarios 2; "
+                "python -m docrl_jax.render; python -m docrl_jax.export --policy td3_lstm --out export/td3_lstm")
     return f"{devs[0].platform.upper()}: {devs[0].device_kind} ({len(devs)} device{'s' if len(devs) > 1 else ''})"
 
 
