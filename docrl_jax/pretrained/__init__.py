@@ -15,6 +15,7 @@ scores. A policy is flown in its run's vehicle (`vehicle`), as `--run` flies a r
 
 from __future__ import annotations
 
+import functools
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -76,10 +77,12 @@ def _key(path) -> str:
     return "/".join(str(k.key) for k in path)
 
 
+@functools.lru_cache(maxsize=None)
 def load(name: str):
     """The deterministic `Policy` of the shipped policy `name` (docrl_jax.policy), its params read
     from `<name>.npz` into the actor's parameter tree; ValueError when the file does not match the
-    actor its config builds."""
+    actor its config builds. Kept once loaded: its functions stay the same, so a process that flies
+    it again reuses the compiled rollout (cached per policy function)."""
     import jax
     import numpy as np
 
