@@ -1,5 +1,6 @@
 """`python -m docrl_jax.train`: the command line (docrl_jax.train.cli) around the trainer program."""
 
 from docrl_jax.train.cli import main
+from docrl_jax.train.loop import exit_process
 
-raise SystemExit(main())
+exit_process(main())

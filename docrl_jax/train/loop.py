@@ -12,19 +12,22 @@ running alongside at a checkpoint or a stop, are paused ones.
 
 Ctrl-C (or SIGTERM, as a cluster's scheduler sends before it kills a job) is answered at once:
 the loop finishes the running chunk (XLA cannot stop it half-way), saves a checkpoint and stops.
-A second one says again what is happening; a third quits without waiting, keeping the checkpoints
-already written; none interrupts a checkpoint being written.
+A second one says again what is happening, with the running chunk's time left; a third quits
+without waiting (`exit_process`), keeping the checkpoints already written; none interrupts a
+checkpoint being written.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import os
 import signal
+import sys
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, NamedTuple
+from typing import Any, Callable, NamedTuple, NoReturn
 
 import jax
 import numpy as np
@@ -71,20 +74,32 @@ class Eta:
     def __init__(self):
         self.chunk_s: list[float] = []
         self.eval_s: list[float] = []
-
-    def add_chunk(self, seconds: float, learning: bool) -> None:
-        if learning:
-            self.chunk_s.append(seconds)
+        self.learning = False   # the last chunk learned on every iteration
 
     def add_eval(self, seconds: float) -> None:
         self.eval_s.append(seconds)
 
+    def add_chunk(self, seconds: float, learning: bool) -> None:
+        self.learning = learning
+        if learning:
+            self.chunk_s.append(seconds)
+
+    def chunk(self) -> float | None:
+        """Seconds a learning chunk takes now (the first may include warm-up), or None before one."""
+        return float(np.median(self.chunk_s[-10:])) if self.chunk_s else None
+
+    def next_chunk(self) -> float | None:
+        """Seconds the chunk after the last one will take: a learning chunk's once the last one
+        learned on every iteration; None before (a chunk that only steps the envs is far faster than
+        the next may be)."""
+        return self.chunk() if self.learning else None
+
     def seconds(self, chunks_left: int, evals_left: int) -> float | None:
-        if not self.chunk_s:
+        chunk = self.chunk()
+        if chunk is None:
             return None
-        recent = self.chunk_s[-10:]  # the pace now (the first learning chunk may include warm-up)
         per_eval = float(np.median(self.eval_s)) if self.eval_s else 0.0
-        return chunks_left * float(np.median(recent)) + evals_left * per_eval
+        return chunks_left * chunk + evals_left * per_eval
 
     def text(self, chunks_left: int, evals_left: int) -> str:
         s = self.seconds(chunks_left, evals_left)
@@ -94,12 +109,13 @@ class Eta:
 class Interrupt:
     """Catches SIGINT and SIGTERM for the loop: `requested` after the first; messages are printed by
     `poll` (called while the loop waits for a chunk) rather than in the handler, so they never
-    interleave with the progress display's own writes."""
+    interleave with the progress display's own writes. They say how long the running chunk has
+    left (`chunk_started`), from the time a chunk takes, when that is known."""
 
-    def __init__(self, console, action: str = "saving a checkpoint"):
-        self.console, self.action = console, action
+    def __init__(self, console, action: str = "saving a checkpoint", clock: Callable[[], float] = time.monotonic):
+        self.console, self.action, self.clock = console, action, clock
         self.count, self.said = 0, 0
-        self.next_stop = "after the running chunk"
+        self.started, self.expected_s = clock(), None
         self.newest = "none yet"     # what a quit without saving keeps (set by the caller)
         self._saving = self._deferred = False
         self._old: dict = {}
@@ -128,6 +144,22 @@ class Interrupt:
             else:
                 raise KeyboardInterrupt
 
+    def chunk_started(self, expected_s: float | None) -> None:
+        """A chunk began now; it takes about `expected_s` seconds (None: not known yet)."""
+        self.started, self.expected_s = self.clock(), expected_s
+
+    @property
+    def next_stop(self) -> str:
+        """When the loop stops: after the running chunk, and how long that has left."""
+        ran = self.clock() - self.started
+        if self.expected_s is None:
+            return f"after the running chunk (it has run {duration(ran)}; no estimate before a learning chunk is timed)"
+        left = self.expected_s - ran
+        if left >= 0.5:
+            return f"after the running chunk (about {duration(left)} more)"
+        return f"after the running chunk (any moment: it has run {duration(ran)}, chunks take about " \
+               f"{duration(self.expected_s)})"
+
     def poll(self) -> None:
         while self.said < self.count:
             self.said += 1
@@ -151,12 +183,17 @@ class Interrupt:
                 raise KeyboardInterrupt
 
 
+_waiters: list[threading.Thread] = []   # `wait`'s helper threads, while the device computes
+
+
 def wait(tree: Any, interrupt: Interrupt | None = None, poll_s: float = 0.1) -> Any:
     """Blocks until the device has computed `tree`. A helper thread does the blocking, so this
     (main) thread keeps running signal handlers and prints a Ctrl-C's message at once; it wakes the
     moment the result is ready (no polling latency added to a chunk)."""
     ready = threading.Event()
-    waiter = threading.Thread(target=lambda: (_block_quietly(tree), ready.set()), daemon=True)
+    waiter = threading.Thread(target=lambda: (_block_quietly(tree), ready.set()), daemon=True,
+                              name="docrl_jax device wait")
+    _waiters[:] = [t for t in _waiters if t.is_alive()] + [waiter]
     waiter.start()
     while not ready.wait(poll_s):
         if interrupt is not None:
@@ -171,6 +208,25 @@ def _block_quietly(tree: Any) -> None:
         jax.block_until_ready(tree)
     except Exception:  # re-raised in the main thread by `wait`
         pass
+
+
+def exit_process(status: int) -> NoReturn:
+    """Ends a command's process with `status`. After a third Ctrl-C the device may still compute the
+    chunk the loop walked away from, with `wait`'s helper thread blocked inside XLA: Python's
+    shutdown would end that thread in the middle of the call and the C++ runtime would abort
+    ('terminate called after throwing an instance of ...', exit 134). Then the process leaves
+    without Python's shutdown, once the threads that Python would wait for have ended (the program
+    store's writes) and its output is flushed; what it keeps (checkpoints, metrics.csv, TensorBoard
+    events) is written and closed by then."""
+    if any(t.is_alive() for t in _waiters):
+        for thread in threading.enumerate():
+            if not thread.daemon and thread is not threading.current_thread():
+                thread.join()
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(status)
+    raise SystemExit(status)
 
 
 @dataclass
@@ -295,6 +351,7 @@ def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: 
 
     while done_chunks < plan.num_chunks:
         t0 = time.time()
+        interrupt.chunk_started(eta.next_chunk())
         state, m = chunk(state, *hp)
         m = get(wait(m, interrupt))
         dt = time.time() - t0
@@ -330,7 +387,6 @@ def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: 
             if began:
                 due = False
                 evals.done()
-        interrupt.next_stop = f"after the running chunk (about {duration(dt)})"
         sps = plan.steps_per_chunk * num_seeds / dt  # env steps/s of all seeds in this chunk
         # Alongside, only the final evaluation pauses training.
         evals_left = 1 if evaluations.alongside else evals.remaining(env_steps, total)

@@ -245,7 +245,10 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
                               pending=pending)
     evals = Cadence(t_cfg.eval_every, t_cfg.eval_every_minutes)
     saves = Cadence(t_cfg.checkpoint_every, t_cfg.checkpoint_every_minutes)
-    with Interrupt(console) as interrupt, display.live(), contextlib.closing(videos):
+    # The writer and the checkpoints are closed however the loop ends (a third Ctrl-C too: the process
+    # then leaves without Python's shutdown, docrl_jax.train.loop.exit_process).
+    with contextlib.closing(mngr), contextlib.closing(writer), Interrupt(console) as interrupt, display.live(), \
+            contextlib.closing(videos):
         newest = mngr.latest_step()
         interrupt.newest = "none yet" if newest is None else f"env step {newest:,}"
         if not resume:
@@ -256,8 +259,6 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         state, done_chunks, status = run_chunks(
             plan, programs.chunk, state, done_chunks, hooks, evaluations, evals, saves, interrupt, get=placement.get,
             any_process=placement.any_process, num_seeds=len(seeds), stop_after_chunks=stop_after_chunks)
-    writer.close()
-    mngr.close()
     env_steps = done_chunks * plan.steps_per_chunk
     if status == EXIT_OK:
         console.print(f"done: {env_steps:,} env steps per seed in {wall():.0f} s; outputs in {run_dir}")

@@ -56,7 +56,7 @@ from docrl_jax.config import Config, field_docs, load_config, parse_overrides, t
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import metrics
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
-                                  make_console, run_chunks, schedule)
+                                  exit_process, make_console, run_chunks, schedule)
 from docrl_jax.train.program_store import enable_compile_cache
 from docrl_jax.train.programs import compile_programs
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
@@ -335,4 +335,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    exit_process(main())

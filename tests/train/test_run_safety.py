@@ -109,14 +109,14 @@ def test_ctrl_c_is_answered_while_the_device_still_computes():
     assert said[0][1] is False   # printed while the device was still computing
 
 
-def _interrupting(monkeypatch, times: int, during_save: int = 0):
-    """Sends `times` SIGINTs while the first chunk runs and `during_save` more inside the first save."""
+def _interrupting(monkeypatch, times: int, during_save: int = 0, chunk: int = 1):
+    """Sends `times` SIGINTs while chunk number `chunk` runs and `during_save` more inside the first save."""
     real_wait, real_save = loop.wait, checkpoint.save
-    sent = {"wait": False, "save": False}
+    sent = {"wait": 0, "save": False}
 
     def wait(tree, interrupt=None, poll_s=0.1):
-        if not sent["wait"]:
-            sent["wait"] = True
+        sent["wait"] += 1
+        if sent["wait"] == chunk:
             for _ in range(times):
                 os.kill(os.getpid(), signal.SIGINT)
         return real_wait(tree, interrupt, poll_s)
@@ -145,6 +145,48 @@ def test_ctrl_c_once_or_twice_saves_after_the_chunk(monkeypatch, presses):
     # Not wrapped at 80 columns in a log file: the resume command is on one line.
     assert f"resume with python -m docrl_jax.train --run-dir {d} --resume" in text
     assert load_policy(d).source.endswith("checkpoint 4000")
+
+
+def test_a_ctrl_c_says_how_long_the_running_chunk_has_left():
+    """From the time a learning chunk takes, less what the running one has run; no estimate while
+    the last chunk did not learn on every iteration (such chunks are far faster than the next)."""
+    said, now = [], [100.0]
+
+    class Recorder:
+        def print(self, text):
+            said.append(text)
+
+    eta = loop.Eta()
+    eta.add_chunk(0.2, learning=False)       # only stepped the envs
+    assert eta.next_chunk() is None
+    eta.add_chunk(60.0, learning=True)
+    eta.add_chunk(62.0, learning=True)
+    assert eta.next_chunk() == pytest.approx(61.0)
+    interrupt = loop.Interrupt(Recorder(), clock=lambda: now[0])
+    interrupt.chunk_started(eta.next_chunk())
+    now[0] += 21.0
+    interrupt.count = 2
+    interrupt.poll()
+    assert all("(about 40 s more)" in line for line in said) and len(said) == 2, said
+    now[0] += 45.0                           # longer than chunks take
+    assert interrupt.next_stop == "after the running chunk (any moment: it has run 1 min 06 s, chunks take about 1 min 01 s)"
+    interrupt.chunk_started(None)
+    now[0] += 3.0
+    assert interrupt.next_stop == ("after the running chunk (it has run 3 s; no estimate before a learning chunk "
+                                   "is timed)")
+
+
+def test_the_second_ctrl_c_gives_the_running_chunks_time_left(monkeypatch):
+    """Chunk 1 (4,000 env steps, start_steps 2,000) learns on half its iterations, chunk 2 on all:
+    pressed during chunk 3, the time chunk 2 took less what chunk 3 has run (the command's test
+    below presses during chunk 2, when there is no estimate yet)."""
+    d = tmp_dir("ctrl_c_estimate")
+    _interrupting(monkeypatch, 2, chunk=3)
+    console, out = _console()
+    assert train_run.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_INTERRUPTED
+    second = [line for line in out.getvalue().splitlines() if line.startswith("still stopping")]
+    assert len(second) == 1 and re.search(r"\(about [1-9]\d* s more\)", second[0]), out.getvalue()
+    assert _steps(d) == [8000, 12000]   # the cadence's, and the stop's after chunk 3
 
 
 def test_a_third_ctrl_c_during_a_save_waits_for_it(monkeypatch):
@@ -188,6 +230,55 @@ def test_a_launch_prints_a_short_summary_and_the_run_directory_holds_the_full_co
     written = (d / "config.yaml").read_text()
     assert written == to_yaml(config) and config_from_dict(yaml.safe_load(written)) == config
     assert len(written.splitlines()) > 50   # every key
+
+
+def test_a_third_ctrl_c_quits_the_command_at_once_with_exit_130_and_the_checkpoints_kept(tmp_path):
+    """The command, in a process of its own, loading this process's compiled programs from a program
+    store (seconds, no compile): three Ctrl-Cs while its second chunk computes. The process leaves
+    at once: exit 130, no C++ abort (a helper thread was inside XLA), the first chunk's checkpoint
+    kept; the second press says that the running chunk's length is not known yet (the first chunk
+    learned on only some of its iterations)."""
+    import subprocess
+    import sys
+    import time
+
+    import yaml
+
+    from docrl_jax.config import to_yaml
+    from docrl_jax.train import program_store, programs
+
+    config = easy_config(train__total_env_steps=10**6, train__eval_every=10**9, train__checkpoint_every=4000)
+    devices = (jax.devices()[0],)
+    program_store.source_digest.cache_clear()   # the store's names as the command will compute them
+    compiled, _ = programs.compile_programs(config, devices)   # memoised: the suite compiles these anyway
+    cache = tmp_path / "cache"
+    for what, name in program_store.store_names(config, devices).items():
+        assert program_store.save(cache / program_store.FOLDER, name, getattr(compiled, what)), what
+    (tmp_path / "easy.yaml").write_text(to_yaml(config))
+    d = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-u", "-m", "docrl_jax.train", "--config", str(tmp_path / "easy.yaml"),
+                             "--run-dir", str(d), "--compile-cache", str(cache), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        lines = []
+        for line in proc.stdout:            # until the first chunk's line: the second chunk is running
+            lines.append(line)
+            if " steps/s " in line:
+                break
+        for _ in range(3):   # a chunk takes a second or more here; each message is printed within 0.1 s
+            proc.send_signal(signal.SIGINT)
+            time.sleep(0.15)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    out = "".join(lines) + out
+    assert "terminate called" not in err and proc.returncode == 130, (proc.returncode, out[-2000:], err[-2000:])
+    # The first chunk learned on only some iterations: the second's length is not known yet.
+    assert "still stopping after the running chunk (it has run 0 s; no estimate" in out
+    assert "quit without saving; newest checkpoint: env step 4,000" in out
+    assert _steps(d) == [4000]
+    assert load_policy(d).source.endswith("checkpoint 4000")
+    assert yaml.safe_load((d / "config.yaml").read_text())["name"] == "easy"
 
 
 # ------------------------------------------------------------------ run directories
