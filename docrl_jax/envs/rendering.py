@@ -18,13 +18,15 @@ env's MjModel; the MJCF that the physics and MJX's rays use is never changed.
 The OpenGL backend is chosen by MuJoCo when `mujoco` is first imported, from MUJOCO_GL;
 `docrl_jax/__init__.py` sets egl (or osmesa) on a Linux machine with no display when it is unset.
 When no context can be created, `Renderer` raises `RenderError` naming MUJOCO_GL and its values.
+
+What a frame shows of a trajectory (a `Track`, built from env states or Gymnasium infos) and the
+text over it come from docrl_jax.envs.render_tracks.
 """
 
 from __future__ import annotations
 
 import copy
 import warnings
-from dataclasses import dataclass
 from typing import Any, Sequence
 
 import mujoco
@@ -33,7 +35,13 @@ import numpy as np
 from docrl_jax.envs import sensors
 from docrl_jax.envs.geometry import TANK_HALF_WIDTH
 from docrl_jax.envs.params import EnvParams
+from docrl_jax.envs.render_tracks import Track, overlay_lines, track_from_infos, track_from_states
 from docrl_jax.errors import RenderError, short_reason
+
+# What is drawn of a trajectory (`Track`) and its builders live in docrl_jax.envs.render_tracks; they
+# are named here too, beside the renderer that draws them.
+__all__ = ["CAMERAS", "RenderError", "Renderer", "Track", "make_gl_renderer", "render_states", "scene_model",
+           "track_from_infos", "track_from_states"]
 
 CAMERAS = ("both", "follow", "overview")
 
@@ -67,24 +75,6 @@ def make_gl_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.R
     for w in caught:   # a context that started: its warnings as usual
         warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     return renderer
-
-
-@dataclass
-class Track:
-    """What is drawn of one trajectory, per frame (leading axis T): the pose and what the env knew."""
-    qpos: np.ndarray                      # (T, 7) position and quaternion (w, x, y, z)
-    goal: np.ndarray                      # (T, 3)
-    ranges: np.ndarray | None = None      # (T, 20) the ranges read (noise included); None: no fan
-    vertical_ranges: np.ndarray | None = None  # (T, k) the beams after the fan (sensors.extra_directions);
-    #                                            None or (T, 0): none
-    underwater: np.ndarray | None = None  # (T,) bool: the sensor used (sonar when true)
-    step: np.ndarray | None = None        # (T,) control steps since the start
-    distance: np.ndarray | None = None    # (T,) metres to the goal
-    status: Sequence[str] | None = None   # (T,) outcome text ("" while the trial goes on)
-    title: str = ""                       # first overlay line, e.g. the method and the trial
-
-    def __len__(self) -> int:
-        return len(self.qpos)
 
 
 def _quat_mat(q) -> np.ndarray:
@@ -176,7 +166,7 @@ class Renderer:
             cam_yaw = self._smooth_yaw(track.qpos[:t + 1])[-1]
         return self.frame(track.qpos[t], track.goal[t], None if track.ranges is None else track.ranges[t],
                           None if track.underwater is None else bool(track.underwater[t]),
-                          lines=self._lines(track, t), trail=track.qpos[:t + 1, :3], cam_yaw=cam_yaw,
+                          lines=overlay_lines(track, t), trail=track.qpos[:t + 1, :3], cam_yaw=cam_yaw,
                           vertical_ranges=None if track.vertical_ranges is None else track.vertical_ranges[t])
 
     def frame(self, qpos, goal, ranges=None, underwater: bool | None = None, lines: Sequence[str] = (),
@@ -334,62 +324,8 @@ class Renderer:
             draw.text((pad, pad + k * step), line, fill=(255, 255, 255, 255), font=self._font)
         return np.asarray(img)
 
-    @staticmethod
-    def _lines(track: Track, t: int) -> list[str]:
-        lines = [track.title] if track.title else []
-        parts = []
-        if track.step is not None:
-            parts.append(f"step {int(track.step[t])}")
-        wet = bool(track.underwater[t]) if track.underwater is not None else bool(track.qpos[t, 2] < 0)
-        parts.append("water (sonar)" if wet else "air (LIDAR)")
-        if track.distance is not None:
-            parts.append(f"goal {float(track.distance[t]):.2f} m")
-        lines.append("  ".join(parts))
-        if track.status is not None and track.status[t]:
-            lines.append(str(track.status[t]))
-        return lines
-
 
 # ------------------------------------------------------------------ from env states
-def _status_of(info: dict[str, np.ndarray], t: int) -> str:
-    for key, text in (("arrived", "arrived"), ("collision", "collision"), ("out_of_bounds", "out of bounds"),
-                      ("truncated", "time-out")):
-        if key in info and bool(info[key][t]):
-            return text
-    return ""
-
-
-def track_from_infos(qpos: Sequence, infos: Sequence[dict]) -> Track:
-    """A Track of poses (T, 7) and the env's info dicts (numpy) of the same steps (the Gymnasium
-    adapter keeps these)."""
-    info = {k: np.stack([np.asarray(i[k]) for i in infos]) for k in infos[0]}
-    return Track(qpos=np.asarray(qpos, np.float64).reshape(-1, 7), goal=info["goal"], ranges=info["ranges"],
-                 vertical_ranges=info.get("vertical_ranges"),
-                 underwater=info["underwater"], step=info["step"], distance=info["distance"],
-                 status=[_status_of(info, t) for t in range(len(infos))])
-
-
-def track_from_states(states: Any) -> Track:
-    """A Track of EnvStates: a sequence of single states or one state stacked over time."""
-    import jax
-    if isinstance(states, (list, tuple)):
-        if not states:
-            raise ValueError("render: no states given")
-        states = jax.tree.map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *states)
-    sim, info = jax.device_get(states.sim), jax.device_get(states.info)
-    qpos = np.asarray(sim.data.qpos)
-    if qpos.ndim == 1:
-        qpos, sim, info = qpos[None], jax.tree.map(lambda x: np.asarray(x)[None], sim), \
-            jax.tree.map(lambda x: np.asarray(x)[None], info)
-    if qpos.ndim != 2 or qpos.shape[1] != 7:
-        raise ValueError(f"render: states of qpos shape {qpos.shape}: expected one env's states over time "
-                         f"(T, 7); for a batch of envs, render one env at a time")
-    return Track(qpos=qpos, goal=np.asarray(sim.goal), ranges=np.asarray(info["ranges"]),
-                 vertical_ranges=np.asarray(info["vertical_ranges"]),
-                 underwater=np.asarray(info["underwater"]), step=np.asarray(info["step"]),
-                 distance=np.asarray(info["distance"]), status=[_status_of(info, t) for t in range(len(qpos))])
-
-
 def render_states(env, states: Any, camera: str = "both", width: int = 640, height: int = 240,
                   fan: bool = True, overlay: bool = True) -> np.ndarray:
     """Frames (T, H, W, 3) uint8 of `env`'s states (see `HUAUVEnv.render`)."""

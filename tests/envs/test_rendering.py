@@ -157,3 +157,15 @@ def test_vertical_beams_drawn_above_and_below_the_vehicle(states):
     rows, cols = np.nonzero(beams)
     assert rows.size > 10 and abs(cols.mean() - vehicle[1]) < 8, (rows.size, cols.mean(), vehicle)
     assert rows.min() < vehicle[0] - 10 and rows.max() > vehicle[0] + 10, (rows.min(), rows.max(), vehicle)
+
+
+def test_the_renderer_and_what_it_draws_of_a_trajectory_are_two_modules_of_at_most_400_lines():
+    """docrl_jax/envs/rendering.py draws; docrl_jax/envs/render_tracks.py holds the `Track` it draws
+    and builds it. The renderer's names for the latter are the same objects, not copies."""
+    from docrl_jax.envs import render_tracks, rendering
+    for module in (rendering, render_tracks):
+        with open(module.__file__) as f:
+            assert len(f.readlines()) <= 400, module.__file__
+    for name in render_tracks.__all__:
+        if hasattr(rendering, name):
+            assert getattr(rendering, name) is getattr(render_tracks, name), name
