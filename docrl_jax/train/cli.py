@@ -105,8 +105,10 @@ def main(argv: list[str] | None = None) -> int:
     if notes:
         console.print(f"[bold]chosen for this device:[/] {'; '.join(notes)}")
     console.print(f"[bold]compilation cache:[/] {cache or 'off'}")
-    return run(config, run_dir, resume=args.resume, console=console, show_progress=not args.no_progress,
-               launch_time=launch)
+    status = run(config, run_dir, resume=args.resume, console=console, show_progress=not args.no_progress,
+                 launch_time=launch)
+    sharding.shutdown_distributed()   # several processes: together, before Python's exit tears the devices down
+    return status
 
 
 def launch_summary(config: Config, run_dir: Path) -> list[str]:

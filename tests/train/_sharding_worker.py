@@ -4,6 +4,8 @@ jax.distributed) must be set up before JAX starts.
     python tests/train/_sharding_worker.py single OUT    one process, 4 CPU devices: runs under OUT/
     python tests/train/_sharding_worker.py multi OUT     one of 2 processes (JAX_COORDINATOR_ADDRESS,
                                                    JAX_NUM_PROCESSES, JAX_PROCESS_ID set), 2 devices each
+    python tests/train/_sharding_worker.py shutdown OUT  one of 2 processes as for multi, no training: a
+                                                   collective, then the session's end (shutdown_distributed)
 
 Every run trains the same 4 seeds of TINY. XLA's backend optimisation is off in these processes:
 it halves the compile time (the cost of these tests) and every run compared shares it.
@@ -81,16 +83,37 @@ def single(out: Path) -> None:
     (out / "summary.json").write_text(json.dumps(summary))
 
 
-def multi(out: Path) -> int:
-    """One of two processes: the 4 seeds over 2 x 2 devices, interrupted after one chunk, then
-    resumed through the command line (which picks the multi-process setup up from the environment)."""
+def _gloo_on_loopback() -> None:
+    """Gloo would bind to the address of the host name; keep the test on loopback (private API:
+    skipped if it moves, then Gloo falls back to its default)."""
     import functools
 
-    # Gloo would bind to the address of the host name; keep the test on loopback (private API: skipped
-    # if it moves, then Gloo falls back to its default).
     from jax._src.lib import _jax
     if hasattr(_jax, "make_gloo_tcp_collectives"):
         _jax.make_gloo_tcp_collectives = functools.partial(_jax.make_gloo_tcp_collectives, hostname="127.0.0.1")
+
+
+def shutdown() -> int:
+    """One of two processes: a collective over both, then the end of the session as the command
+    line ends it. Prints what it saw; the test reads both processes' output."""
+    _gloo_on_loopback()
+    import jax
+    import numpy as np
+
+    from docrl_jax import sharding
+    sharding.initialize_distributed()
+    placement = sharding.SeedPlacement(tuple(jax.devices()))
+    gathered = placement.get(placement.put_seeds(np.arange(4, dtype=np.int32)))
+    sharding.shutdown_distributed()
+    print(f"process {jax.process_index()}: gathered {gathered.tolist()}, session open after the end: "
+          f"{jax.distributed.is_initialized()}", flush=True)
+    return 0
+
+
+def multi(out: Path) -> int:
+    """One of two processes: the 4 seeds over 2 x 2 devices, interrupted after one chunk, then
+    resumed through the command line (which picks the multi-process setup up from the environment)."""
+    _gloo_on_loopback()
     import jax
 
     from docrl_jax import sharding
@@ -107,10 +130,10 @@ def multi(out: Path) -> int:
 
 if __name__ == "__main__":
     mode, out = sys.argv[1], Path(sys.argv[2])
-    count = {"single": 4, "multi": 2}[mode]
+    count = {"single": 4, "multi": 2, "shutdown": 2}[mode]
     os.environ["XLA_FLAGS"] = (f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={count} "
                                f"{XLA_FLAGS}")
     if mode == "single":
         single(out)
         sys.exit(0)
-    sys.exit(multi(out))
+    sys.exit(shutdown() if mode == "shutdown" else multi(out))

@@ -95,6 +95,48 @@ def test_distributed_without_a_coordinator_is_a_clear_error(monkeypatch, capsys)
     assert "set JAX_COORDINATOR_ADDRESS=host:port of process 0" in " ".join(capsys.readouterr().out.split())
 
 
+def test_the_command_line_ends_a_distributed_session_after_its_run(monkeypatch, tmp_path):
+    """After the run, every process together (`sharding.shutdown_distributed`), not in JAX's exit
+    handler after the devices are gone; a single-process launch has no session to end."""
+    from docrl_jax.train import cli
+    from docrl_jax.train import run as train_run
+    calls = []
+    monkeypatch.setattr(sharding, "initialize_distributed", lambda: calls.append("initialize"))
+    monkeypatch.setattr(train_run, "run", lambda *a, **k: calls.append("run") or cli.EXIT_INTERRUPTED)
+    monkeypatch.setattr(jax.distributed, "is_initialized", lambda: "initialize" in calls)
+    monkeypatch.setattr(jax.distributed, "shutdown", lambda: calls.append("shutdown"))
+    from jax.experimental import multihost_utils
+    monkeypatch.setattr(multihost_utils, "sync_global_devices", lambda name: calls.append("barrier"))
+    args = ["--config", "td3_lstm", "--run-dir", str(tmp_path / "run"), "--compile-cache", "off"]
+    assert cli.main(["--distributed", *args]) == cli.EXIT_INTERRUPTED
+    assert calls == ["initialize", "run", "barrier", "shutdown"]
+    calls.clear()
+    assert cli.main(args) == cli.EXIT_INTERRUPTED and calls == ["run"]
+
+
+def test_two_processes_end_their_session_together_and_quietly(tmp_path):
+    """Two CPU processes (2 devices each) gather over both, then end the session as the command line
+    does: both exit 0 with the session closed and nothing on their output but Gloo's connection line
+    and their own. (The GRPC 'WatchTasksAsync ... CANCELLED' lines came from two GPU processes; two
+    CPU processes left to JAX's exit handler print none either, so this cannot show their absence.)"""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    env = {"JAX_COORDINATOR_ADDRESS": f"127.0.0.1:{port}", "JAX_COORDINATOR_BIND_ADDRESS": f"127.0.0.1:{port}",
+           "JAX_NUM_PROCESSES": "2"}
+    procs = [_run(["shutdown", str(tmp_path)], {**env, "JAX_PROCESS_ID": str(i)}) for i in range(2)]
+    try:
+        logs = [p.communicate(timeout=120)[0] for p in procs]
+    finally:
+        for p in procs:
+            p.kill()
+    for i, (p, log) in enumerate(zip(procs, logs)):
+        assert p.returncode == 0, log[-3000:]
+        assert f"process {i}: gathered [0, 1, 2, 3], session open after the end: False" in log, log
+        other = [line for line in log.splitlines() if not line.startswith(("[Gloo]", f"process {i}:"))]
+        assert not other, other
+
+
 def _rows(run_dir: Path) -> list[dict]:
     with open(run_dir / "metrics.csv", newline="") as fh:
         return list(csv.DictReader(fh))
