@@ -1,8 +1,8 @@
 """Table I side by side: several `python -m docrl_jax.evaluate` outputs in one table, beside the
 paper's published numbers.
 
-    python -m docrl_jax.compare docs/results/paper_reward/{td3,sac,sto,det} docs/results/bba \
-        --out docs/results/paper_reward/table_i.md
+    python -m docrl_jax.compare docs/results/defaults_2026_11_24/{td3,sac,sto,det} docs/results/bba \
+        --out docs/results/defaults_2026_11_24/table_i.md
 
 Each argument is an evaluation output directory (its results.json). A multi-seed evaluation
 contributes its mean and spread over seeds; a single-seed one (or BBA) one value. Rows are ordered

@@ -76,7 +76,7 @@ def test_counts_are_out_of_the_trials_run(tmp_path, capsys):
     assert "| A-W BBA | 4 of 10 (" in text.split("Every scenario")[1]
 
 
-@pytest.mark.parametrize("variant", ["paper_reward", "shaped"])
+@pytest.mark.parametrize("variant", ["defaults_2026_11_24"])
 def test_committed_tables_regenerate(variant):
     """docs/results/*/table_i.md is exactly what compare makes of the committed evaluation outputs."""
     from pathlib import Path
