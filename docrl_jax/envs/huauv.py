@@ -77,6 +77,9 @@ class SimState:
 
 @struct.dataclass
 class EnvState:
+    """One env's state between control steps (a frozen pytree: stack or vmap it for a batch). `obs` is what
+    the policy sees next, `reward`/`done` describe the step that produced this state, `info` holds the
+    episode's diagnostics (arrived, collision, out_of_bounds, truncated, distance, goal, ...)."""
     sim: SimState
     obs: jax.Array            # (26,), (28,) with vertical_beams
     reward: jax.Array         # ()
@@ -133,6 +136,7 @@ class HUAUVEnv:
 
     @property
     def control_dt(self) -> float:
+        """Seconds of simulated time per `step` (the policy's control period)."""
         return self.params.control_dt
 
     # ------------------------------------------------------------------ the episode's tank
@@ -198,6 +202,9 @@ class HUAUVEnv:
         return jnp.where(jnp.any(ok), cand[jnp.argmax(ok)], fallback)
 
     def sample_goal(self, key, position, layout=None):
+        """A goal point (3,) for an episode starting at `position`: in water with `goal_water_fraction`,
+        between `min_goal_distance` and `max_goal_distance` away, clear of the layout's solids (in its
+        regions for a procedural tank)."""
         p = self.params
         return self._sample_point(key, p.goal_water_fraction, position, p.min_goal_distance, p.max_goal_distance,
                                   layout=layout)
@@ -256,6 +263,9 @@ class HUAUVEnv:
 
     # ------------------------------------------------------------------ step
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        """One control step: `action` (3,) in [-1, 1] (non-finite entries count as 0) commands the
+        velocity controller over the physics substeps, then the active fan is cast and the reward and
+        termination computed. Pure; after `done` the caller resets (AutoResetWrapper does it inside `step`)."""
         p, veh, sim = self.params, self.vehicle, state.sim
         key, k_wind, k_noise, k_goal = jax.random.split(sim.key, 4)
 

@@ -26,6 +26,9 @@ def reset_key(stepped: EnvState) -> jax.Array:
 
 
 class AutoResetWrapper:
+    """`env` with episodes that restart inside `step` (module docstring); every other attribute is the
+    env's own."""
+
     def __init__(self, env: HUAUVEnv):
         self.env = env
 
