@@ -47,9 +47,7 @@ def command(module_name: str, target: str) -> None:
     make attribute look-ups on the short module name the module where the code lives."""
     module = sys.modules[module_name]
     if module_name == "__main__":
-        status = importlib.import_module(target).main()
-        from docrl_jax.train.loop import exit_process  # a third Ctrl-C leaves without aborting (its docstring)
-        exit_process(status)
+        raise SystemExit(importlib.import_module(target).main())
 
     def __getattr__(name):
         if name.startswith("__"):  # the import system's own look-ups
