@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 import yaml
 
-from docrl_jax import pretrained
-from docrl_jax.evaluate import rollout, video
+from docrl_jax import pretrained, sharding
+from docrl_jax.evaluate import cli, rollout, video
+from docrl_jax.export import cli as export_cli
 
 
 def test_every_name_is_a_policy_of_its_config():
@@ -66,3 +67,22 @@ def test_render_by_default_draws_a_shipped_policy_succeeding(tmp_path, monkeypat
     env = rollout.make_eval_env(2, 500, **rollout.flown_env(pretrained.vehicle("sac_mlp_generalist"), {}))
     trials = video.trials_to_render(env, pretrained.load("sac_mlp_generalist"), 2, "air_to_water", 1)
     assert bool(trials["success"][0])
+
+
+def test_the_cpu_device_line_names_commands_that_run(tmp_path, monkeypatch):
+    """On a CPU, the trainer's device line says what to run instead: each command it names passes its
+    command's checks (a renamed flag or policy would fail here)."""
+    class Cpu:
+        platform = "cpu"
+    monkeypatch.setattr(sharding.jax, "devices", lambda: [Cpu()])
+    monkeypatch.chdir(tmp_path)
+    line = sharding.device_line()
+    assert "Training needs a GPU" in line
+    commands = [c.split() for c in line.split("instead: ")[1].split("; ")]
+    assert [c[:3] for c in commands] == [["python", "-m", f"docrl_jax.{m}"] for m in ("evaluate", "render", "export")]
+    evaluate, render, export = (c[3:] for c in commands)
+    assert cli.validate_args(cli.build_parser().parse_args(evaluate))["scenarios"] == [2]
+    args = video.build_parser().parse_args(render)
+    video.validate_args(args)
+    assert args.policy in pretrained.PRETRAINED and not list(tmp_path.iterdir())
+    assert export_cli.build_parser().parse_args(export).policy in pretrained.PRETRAINED
