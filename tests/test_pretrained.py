@@ -56,7 +56,7 @@ def test_an_unknown_name_is_one_line_naming_the_valid_ones():
 
 def test_render_by_default_draws_a_shipped_policy_succeeding(tmp_path, monkeypatch, capsys):
     """No arguments: the generalist's first scenario-2 W-A trial, a success, to flight.gif (drawn small
-    here; the default 640x240 is 2.7 MB). The same program then flies its first A-W trial."""
+    here; the default 640x240 is 2.5 MB). The same program then flies its first A-W trial."""
     monkeypatch.chdir(tmp_path)
     assert video.main(["--width", "64", "--height", "32"]) == 0
     text = capsys.readouterr().out

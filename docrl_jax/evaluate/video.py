@@ -51,7 +51,7 @@ INSTALL = "pip install -e '.[render]'"
 HOLD_S = 1.0        # each trial's last frame (its outcome) stays this long
 RANDOM_SALT = 7     # random trials' keys: fold_in(fold_in(PRNGKey(seed), scenario), RANDOM_SALT + i)
 # What the command draws without --run or --policy: a shipped policy's success (its first scenario-2
-# W-A trial, 147 steps), a GIF of 2.7 MB at the default size.
+# W-A trial, 147 steps), a GIF of 2.5 MB at the default size.
 DEFAULT_POLICY = "sac_mlp_generalist"
 DEFAULT_OUT = "flight.gif"
 GIF_EVERY = 2       # a GIF's default --every
