@@ -32,7 +32,7 @@ def main(argv=None) -> int:
 
     from docrl_jax import envs, evaluate
     from docrl_jax.evaluate import protocol
-    from docrl_jax.evaluate.cli import run_vehicle
+    from docrl_jax.evaluate.run_dirs import run_vehicle
     from docrl_jax.evaluate.rollout import flown_env
     from docrl_jax.train import load_policy
     meta, rows = run_meta(), []

@@ -77,7 +77,7 @@ FLOORS = [
     ["docrl_jax.networks", "docrl_jax.replay", "docrl_jax.algorithms", "docrl_jax.sharding", "docrl_jax.policy",
      "docrl_jax.baselines"],
     ["docrl_jax.checkpoint", "docrl_jax.memory"],
-    ["docrl_jax.runs"],
+    ["docrl_jax.runs", "docrl_jax.pretrained"],
     ["docrl_jax.evaluate", "docrl_jax.export"],
     ["docrl_jax.train"],
     ["docrl_jax.sweep", "docrl_jax.compare", "docrl_jax.plotting", "docrl_jax"],   # command names, the package

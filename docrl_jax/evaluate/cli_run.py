@@ -16,7 +16,7 @@ import numpy as np
 from docrl_jax import pretrained, runs
 from docrl_jax.errors import RunDirError
 from docrl_jax.evaluate import rollout, tank_trials
-from docrl_jax.evaluate.cli import _run_config, config_name, run_num_seeds, run_vehicle
+from docrl_jax.evaluate.run_dirs import config_name, run_config, run_num_seeds, run_vehicle
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, NOMINAL_YAW, TrialSpec
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, markdown_table, trial_table, write_outputs
 
@@ -64,7 +64,7 @@ def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
         sources = policy_sources(args, cfg["seed_indices"])
         seed_indices = [s for _, s in sources] if len(args.run) == 1 else list(range(len(sources)))
     # Each run's agent settings: runs with the same ones share their networks (and compiled rollout).
-    agents = {run: json.dumps(_run_config(run).get("agent"), sort_keys=True) for run in args.run or []}
+    agents = {run: json.dumps(run_config(run).get("agent"), sort_keys=True) for run in args.run or []}
     vehicles = {seed_index: run_vehicle(run, args.policy) for seed_index, (run, _) in zip(seed_indices, sources)}
     rows, trial_rows, tank_rows = [], [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),

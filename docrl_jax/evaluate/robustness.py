@@ -184,7 +184,7 @@ class Method:
     runs: list[str] | None            # None: the BBA
     sources: list[tuple[str | None, int | None]]   # (run dir, seed index within it) per seed
     seed_indices: list[int | None]    # each seed's number in the tables
-    vehicle: dict = field(default_factory=dict)   # its runs' vehicle settings (evaluate.cli.run_vehicle)
+    vehicle: dict = field(default_factory=dict)   # its runs' vehicle settings (evaluate.run_dirs.run_vehicle)
 
 
 def trip_layouts(test: str, params, count: int, tank: str | None):

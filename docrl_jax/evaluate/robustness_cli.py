@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import cli, robustness, rollout, tank_sets
+from docrl_jax.evaluate import cli, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
 from docrl_jax.evaluate.robustness import ENVELOPE, PERTURBATIONS, TESTS, Method
@@ -181,26 +181,26 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
     methods = []
     for group in args.run or []:
         for run in group:
-            cli.check_run_dir(run)
-            bad = [s for s in seed_indices or [] if s >= cli.run_num_seeds(run)]
+            run_dirs.check_run_dir(run)
+            bad = [s for s in seed_indices or [] if s >= run_dirs.run_num_seeds(run)]
             if bad:
-                raise UsageError(f"--seed-index {bad[0]}: {run} trained {cli.run_num_seeds(run)} seed(s) "
-                                 f"(valid 0..{cli.run_num_seeds(run) - 1})")
+                raise UsageError(f"--seed-index {bad[0]}: {run} trained {run_dirs.run_num_seeds(run)} seed(s) "
+                                 f"(valid 0..{run_dirs.run_num_seeds(run) - 1})")
         sources = [(run, s) for run in group
-                   for s in (seed_indices if seed_indices is not None else range(cli.run_num_seeds(run)))]
+                   for s in (seed_indices if seed_indices is not None else range(run_dirs.run_num_seeds(run)))]
         numbers = [s for _, s in sources] if len(group) == 1 else list(range(len(sources)))
-        names = {cli.config_name(run) for run in group}
+        names = {run_dirs.config_name(run) for run in group}
         if len(group) > 1 and len(names) != 1:
             name = None   # needs --label
         else:
             name = names.pop() if len(group) > 1 else Path(group[0]).resolve().name
         if name is not None and args.which == "best":
             name += " (best)"
-        vehicles = {json.dumps(cli.run_vehicle(run), sort_keys=True) for run in group}
+        vehicles = {json.dumps(run_dirs.run_vehicle(run), sort_keys=True) for run in group}
         if len(vehicles) > 1:
             raise UsageError(f"--run {' '.join(group)}: the runs fly different vehicles ({'; '.join(sorted(vehicles))}, "
                              "from their config.yaml env sections); give each vehicle its own --run")
-        methods.append(Method(name, list(group), sources, numbers, cli.run_vehicle(group[0])))
+        methods.append(Method(name, list(group), sources, numbers, run_dirs.run_vehicle(group[0])))
     if args.policy is not None:
         methods.append(Method(bba.label(args.bba_depth_phase), None, [(None, None)], [None]))
     labels = args.label or []
@@ -212,7 +212,7 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
     for m in methods:
         if m.label is None:
             raise UsageError(f"--run {' '.join(m.runs)}: the run directories hold different configs "
-                             f"({', '.join(sorted({cli.config_name(r) for r in m.runs}))}); benchmark one config "
+                             f"({', '.join(sorted({run_dirs.config_name(r) for r in m.runs}))}); benchmark one config "
                              "per --run, or name the method with --label")
     labels = [m.label for m in methods]
     if len(set(labels)) != len(labels):

@@ -40,7 +40,7 @@ def _eval_settings(max_steps: int, overrides: dict) -> dict:
 
 
 def flown_env(vehicle: dict, env_overrides: dict) -> dict:
-    """The env overrides a policy is evaluated under: its run's vehicle (`evaluate.cli.run_vehicle`),
+    """The env overrides a policy is evaluated under: its run's vehicle (`evaluate.run_dirs.run_vehicle`),
     then the command's --env (which wins: flying a policy in another vehicle is a test too)."""
     return {**vehicle, **env_overrides}
 

@@ -236,7 +236,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     """Checks the command line before anything is compiled; raises UsageError or RunDirError."""
     from docrl_jax.baselines.bba import DEPTH_PHASES
     from docrl_jax.evaluate import rollout
-    from docrl_jax.evaluate.cli import check_run_dir, parse_env_overrides, run_vehicle
+    from docrl_jax.evaluate.cli import parse_env_overrides
+    from docrl_jax.evaluate.run_dirs import check_run_dir, run_vehicle
     if args.run is None:
         args.policy = pretrained.check_name((args.policy or DEFAULT_POLICY).lower())
     if args.bba_depth_phase not in DEPTH_PHASES:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from docrl_jax import pretrained
-from docrl_jax.evaluate import cli, cli_run, video
+from docrl_jax.evaluate import cli, cli_run, run_dirs, video
 from docrl_jax.export import cli as export_cli
 
 VALID = "valid choices: bba, td3_lstm, sac_lstm, sac_mlp, sac_mlp_generalist"
@@ -79,5 +79,5 @@ def test_every_command_takes_every_shipped_policy(no_compile, tmp_path):
         assert cli.validate_args(args)["scenarios"] == [2] and args.policy == name
         args = video.build_parser().parse_args(["--policy", name, "--out", str(tmp_path / "x.gif")])
         cfg = video.validate_args(args)
-        assert cfg["env"] == cli.run_vehicle(None, name) and args.every == video.GIF_EVERY
-    assert cli.run_vehicle(None, "sac_mlp_generalist")["vertical_beams"] is True
+        assert cfg["env"] == run_dirs.run_vehicle(None, name) and args.every == video.GIF_EVERY
+    assert run_dirs.run_vehicle(None, "sac_mlp_generalist")["vertical_beams"] is True

@@ -14,7 +14,7 @@ import pytest
 
 import docrl_jax.envs as envs
 from docrl_jax import evaluate
-from docrl_jax.evaluate import cli, curves, paper_results, plotting, rollout
+from docrl_jax.evaluate import cli, curves, paper_results, plotting, rollout, run_dirs
 from docrl_jax.baselines.scripted import straight_line
 from docrl_jax.errors import RunDirError
 
@@ -207,16 +207,16 @@ def test_learning_curves_missing_column(tmp_path):
 
 def test_check_run_dir(tmp_path):
     with pytest.raises(RunDirError, match="does not exist"):
-        cli.check_run_dir(tmp_path / "nope")
+        run_dirs.check_run_dir(tmp_path / "nope")
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "metrics.csv").write_text("x\n")
     with pytest.raises(RunDirError, match="no config.yaml"):
-        cli.check_run_dir(tmp_path / "run")
+        run_dirs.check_run_dir(tmp_path / "run")
     (tmp_path / "file").write_text("")
     with pytest.raises(RunDirError, match="not a directory"):
-        cli.check_run_dir(tmp_path / "file")
+        run_dirs.check_run_dir(tmp_path / "file")
     (tmp_path / "run" / "config.yaml").write_text("a: 1\n")
-    assert cli.check_run_dir(tmp_path / "run") == tmp_path / "run"
+    assert run_dirs.check_run_dir(tmp_path / "run") == tmp_path / "run"
 
 
 @pytest.fixture
@@ -319,7 +319,7 @@ def fake_trainer(monkeypatch, tmp_path):
     oracle = straight_line()
 
     def load_policy(run_dir, seed_index=0, which="final"):
-        cli.check_run_dir(run_dir)
+        run_dirs.check_run_dir(run_dir)
         if seed_index > 1:
             raise RunDirError(f"run directory {run_dir!r} has seeds 0, 1; no seed index {seed_index}")
         return dataclasses.replace(oracle, source=f"{which} policy of seed index {seed_index}")
@@ -538,10 +538,10 @@ def test_cli_run_is_flown_in_its_vehicle(fake_trainer, tmp_path):
     (fake_trainer / "config.yaml").write_text(
         "algo: oracle\nenv:\n  vel_i_rate: 0.3\n  goal_clearance: 0.6\n  dr_mass_scale: [0.8, 1.2]\n")
     low = {"z_bounds": list(LOW_FLOOR)}
-    vehicle = cli.run_vehicle(fake_trainer)
+    vehicle = run_dirs.run_vehicle(fake_trainer)
     assert rollout.flown_env(vehicle, low) == {"vel_i_rate": 0.3, **low}
     assert rollout.flown_env(vehicle, {"vel_i_rate": 0.0}) == {"vel_i_rate": 0.0}
-    assert rollout.flown_env(cli.run_vehicle(None), low) == low
+    assert rollout.flown_env(run_dirs.run_vehicle(None), low) == low
     out = tmp_path / "out"
     assert cli.main(["--run", str(fake_trainer), "--seed-index", "0", "--trials", str(N), "--scenarios", "1",
                      "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "0",
