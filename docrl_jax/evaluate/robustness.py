@@ -41,6 +41,7 @@ from typing import Sequence
 
 import numpy as np
 
+from docrl_jax import pretrained
 from docrl_jax.evaluate import rollout
 # The trips' media, keys and runner live in rollout, where the tank trials fly them too.
 from docrl_jax.evaluate.rollout import MEDIA, trip_keys, trip_trials
@@ -179,12 +180,13 @@ def structured_layouts(params, num: int):
 
 @dataclass
 class Method:
-    """A policy to benchmark: a run group (its run directories' seeds) or the BBA."""
+    """A policy to benchmark: a run group (its run directories' seeds), a shipped policy or the BBA."""
     label: str
-    runs: list[str] | None            # None: the BBA
+    runs: list[str] | None            # None: a shipped policy or the BBA
     sources: list[tuple[str | None, int | None]]   # (run dir, seed index within it) per seed
     seed_indices: list[int | None]    # each seed's number in the tables
     vehicle: dict = field(default_factory=dict)   # its runs' vehicle settings (evaluate.run_dirs.run_vehicle)
+    shipped: str | None = None        # a shipped policy's name (docrl_jax.pretrained)
 
 
 def trip_layouts(test: str, params, count: int, tank: str | None):
@@ -236,9 +238,12 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
             # The policy is built for the first env the tests fly (the BBA reads its parameters).
             own = any(t in cfg["tests"] for t in ("perturbations", "random_trips"))
             first_env = rollout.make_eval_env(cfg["scenarios"][0] if own else 0, steps, **host_kw)
-            policy, _ = rollout.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"])
+            if method.shipped:
+                policy = pretrained.load(method.shipped)
+            else:
+                policy, _ = rollout.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"])
             if policy.source:
-                report(f"{method.label}: {Path(run).name}: {policy.source}")
+                report(f"{method.label}: {Path(run).name + ': ' if run else ''}{policy.source}")
             for scenario in cfg["scenarios"] if "perturbations" in cfg["tests"] else ():
                 host = rollout.make_eval_env(scenario, steps, **host_kw)
                 for setting in settings:

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from docrl_jax.errors import RunDirError, os_error_line
+from docrl_jax import pretrained
 from docrl_jax.evaluate import cli, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
@@ -67,12 +68,13 @@ def parse_perturbations(text: str) -> list[str]:
 
 def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.policy import CHECKPOINT_POLICIES
-    p = argparse.ArgumentParser(prog="python -m docrl_jax.robustness", description=__doc__.split("\n\n")[0],
+    p = cli.OneLineParser(prog="python -m docrl_jax.robustness", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--run", metavar="RUN_DIR", nargs="+", action="append",
                    help="a trainer run directory, or several of one config (separate launches: the method's seeds); "
                         "give --run again for another method beside it")
-    p.add_argument("--policy", metavar="NAME", help="a built-in policy beside the runs: bba")
+    p.add_argument("--policy", metavar="NAME", help="a policy beside the runs: a shipped one (docrl_jax/pretrained) "
+                   "or the baseline bba")
     p.add_argument("--label", action="append", metavar="NAME",
                    help="a method's name in the tables, once per method in order (each --run, then --policy)")
     p.add_argument("--seed-index", default="all",
@@ -114,10 +116,13 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     from docrl_jax.baselines.bba import DEPTH_PHASES
     from docrl_jax.envs.layouts import HELD_OUT_IDS
     if not args.run and args.policy is None:
-        raise UsageError("nothing to benchmark: give --run RUN_DIR (repeatable) and/or --policy bba")
-    if args.policy is not None and args.policy.lower() not in cli.POLICIES:
-        raise UsageError(f"--policy {args.policy!r}: unknown policy; valid choices: {', '.join(cli.POLICIES)} "
-                         "(or --run RUN_DIR for a trained agent)")
+        raise UsageError("nothing to benchmark: give --run RUN_DIR (repeatable) and/or --policy NAME "
+                         f"({', '.join(pretrained.POLICY_NAMES)})")
+    if args.policy is not None:
+        try:
+            pretrained.check_name(args.policy)
+        except pretrained.UnknownPolicy as e:
+            raise UsageError(str(e)) from None
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
     trials = args.trials if args.trials is not None else (QUICK["trials"] if args.quick else 100)
@@ -201,7 +206,9 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
             raise UsageError(f"--run {' '.join(group)}: the runs fly different vehicles ({'; '.join(sorted(vehicles))}, "
                              "from their config.yaml env sections); give each vehicle its own --run")
         methods.append(Method(name, list(group), sources, numbers, run_dirs.run_vehicle(group[0])))
-    if args.policy is not None:
+    if args.policy in pretrained.PRETRAINED:
+        methods.append(Method(args.policy, None, [(None, None)], [None], pretrained.vehicle(args.policy), args.policy))
+    elif args.policy is not None:
         methods.append(Method(bba.label(args.bba_depth_phase), None, [(None, None)], [None]))
     labels = args.label or []
     if labels and len(labels) != len(methods):

@@ -223,3 +223,29 @@ def test_each_method_is_flown_in_its_runs_vehicle(tmp_path, monkeypatch):
                                                      "--out", str(tmp_path / "o")])
     with pytest.raises(robustness_cli.UsageError, match="fly different vehicles"):
         robustness_cli.validate_args(args)
+
+
+def test_a_shipped_policy_is_a_method_in_its_own_vehicle(tmp_path, monkeypatch):
+    """--policy takes the shipped policies as it takes bba: the method flies the shipped actor (not the
+    BBA) in its config's vehicle; an unknown name is one line naming the valid ones."""
+    from docrl_jax import pretrained
+    args = robustness_cli.build_parser().parse_args(["--policy", "sac_mlp_generalist", "--out", str(tmp_path / "o")])
+    (method,) = robustness_cli.validate_args(args)["methods"]
+    assert (method.label, method.shipped, method.runs) == ("sac_mlp_generalist", "sac_mlp_generalist", None)
+    assert method.vehicle == pretrained.vehicle("sac_mlp_generalist") and method.vehicle["vertical_beams"] is True
+    loaded = []
+
+    class Loaded(Exception):
+        pass
+
+    def load(name):
+        loaded.append(name)
+        raise Loaded
+    monkeypatch.setattr(pretrained, "load", load)
+    monkeypatch.setattr(rollout, "make_eval_env", lambda *a, **kw: None)
+    with pytest.raises(Loaded):
+        robustness.run_benchmark([method], robustness_cli.validate_args(args))
+    assert loaded == ["sac_mlp_generalist"]
+    bad = robustness_cli.build_parser().parse_args(["--policy", "td3_lstn", "--out", str(tmp_path / "o")])
+    with pytest.raises(robustness_cli.UsageError, match=r"^--policy 'td3_lstn': unknown policy; valid choices: bba, "):
+        robustness_cli.validate_args(bad)
