@@ -1,5 +1,5 @@
 """A level pool and a level curriculum for procedural tanks: small pure functions beside the env, run
-inside the trainer's scanned program (`levels.sampler` of the config; docrl_jax/config.py documents it).
+inside the trainer's scanned program (`levels.sampler` of the config; docrl_jax/config/sections.py documents it).
 
 A *level* is a `layouts.Layout` (tank, obstacles, structures, start and goal regions). The pool holds
 `capacity` of them, every one checked flyable both ways (`flyability.check`) before it enters, so no
