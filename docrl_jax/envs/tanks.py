@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 from docrl_jax.envs import geometry, layouts
 from docrl_jax.envs.params import BOX_SLOTS, CAPSULE_SLOTS, EnvParams
 from docrl_jax.resources import resource_dir
+from docrl_jax.schema import did_you_mean
 
 TOP_KEYS = ("name", "description", "floor_top", "air", "water", "solids")
 BOX_KEYS = ("type", "name", "center", "half_extents", "yaw", "pitch", "roll")
@@ -84,7 +85,8 @@ def _read(path: Path) -> dict:
 def _keys(data: dict, valid, required, where: str) -> None:
     unknown = [k for k in data if k not in valid]
     if unknown:
-        raise TankError(f"{where}: unknown key {unknown[0]!r}; valid keys: {', '.join(valid)}")
+        raise TankError(f"{where}: unknown key {unknown[0]!r}; valid keys: {', '.join(valid)}"
+                        f"{did_you_mean(str(unknown[0]), valid)}")
     missing = [k for k in required if k not in data]
     if missing:
         raise TankError(f"{where}: missing key {missing[0]!r}; required: {', '.join(required)}")
@@ -118,7 +120,8 @@ def _solid(entry, i: int, where: str):
         raise TankError(f"{where}: solid {label}: missing key 'type'; valid types: box, capsule")
     if kind not in ("box", "capsule"):
         label = repr(entry["name"]) if isinstance(entry.get("name"), str) else str(i + 1)
-        raise TankError(f"{where}: solid {label}: unknown type {kind!r}; valid types: box, capsule")
+        raise TankError(f"{where}: solid {label}: unknown type {kind!r}; valid types: box, capsule"
+                        f"{did_you_mean(str(kind), ('box', 'capsule'))}")
     name = _text(entry.get("name", f"{kind}_{i + 1}"), where, f"solid {i + 1}'s name")
     at = f"{where}: solid {name!r}"
     if kind == "box":
@@ -321,7 +324,7 @@ def files(spec) -> list[Path]:
         if not path.is_file():
             packaged = ", ".join(packaged_names()) or "none"
             raise TankError(f"tank {str(spec)!r}: no such file or folder, nor a packaged tank; packaged: {packaged} "
-                            f"(or {_PACKAGED!r}, all of them)")
+                            f"(or {_PACKAGED!r}, all of them){did_you_mean(str(spec), [*packaged_names(), _PACKAGED])}")
     if path.is_dir():
         found = sorted((f for f in path.iterdir() if f.suffix in SUFFIXES and f.is_file()), key=lambda f: f.name)
         if not found:

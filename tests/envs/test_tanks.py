@@ -150,8 +150,12 @@ REFUSED = {
                                  ["solid 'roof' lies outside the tank", "5.4"]),
     "an unknown key": ({**TANK, "solids": [{**_solid("post", (3, 3, 0)), "colour": "red"}]},
                        ["solid 'post'", "unknown key 'colour'", "center, half_extents"]),
+    "a misspelt key": ({**TANK, "solids": [{**_solid("post", (3, 3, 0)), "half_extent": [0.2, 0.2, 1.0]}]},
+                       ["unknown key 'half_extent'", "did you mean 'half_extents'?"]),
     "an unknown type": ({**TANK, "solids": [{"type": "cylinder", "name": "drum"}]},
                         ["solid 'drum'", "unknown type 'cylinder'", "box, capsule"]),
+    "a misspelt type": ({**TANK, "solids": [{"type": "capsul", "name": "pipe"}]},
+                        ["unknown type 'capsul'", "did you mean 'capsule'?"]),
     "a floor too deep": ({**TANK, "floor_top": -4.5}, ["floor_top -4.5", "-4.4 .. -0.8"]),
     "a water region in the air": ({**TANK, "water": [3.0, 3.0, 0.5]}, ["the water region", "z < 0"]),
     "no way through": (
@@ -177,6 +181,8 @@ def test_sets_resolve_folders_and_names(tmp_path, params):
         tanks.load_set(tmp_path, params)
     with pytest.raises(tanks.TankError, match="nor a packaged tank; packaged: "):
         tanks.load_set("no_such_tank", params)
+    with pytest.raises(tanks.TankError, match=r"did you mean 'wall_opening_air'\?$"):
+        tanks.load_set("wall_openning_air", params)
 
 
 # ---------------------------------------------------------------- the env in a tank
