@@ -30,7 +30,7 @@ def test_every_name_is_a_policy_of_its_config():
         assert all(x.dtype == jnp.float32 and bool(jnp.isfinite(x).all()) for x in leaves)
         assert policy.source.startswith(f"shipped policy {name}: ")
     assert sum(pretrained._file(n, ".npz").stat().st_size for n in pretrained.PRETRAINED) < 1_000_000   # lean
-    assert pretrained.vehicle("td3_lstm") == {}
+    assert pretrained.vehicle("td3_lstm") == {"vel_i_rate": 0.3} and pretrained.vehicle("sac_lstm") == {}
     assert pretrained.vehicle("sac_mlp_generalist") == {"slant_beams": 8, "slant_elevation_deg": 30,
                                                         "vel_i_rate": 0.3, "vertical_beams": True}
 
