@@ -31,12 +31,10 @@ def policy_sources(args, seed_indices: list[int] | None) -> list[tuple[str, int]
 def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple[Any, str]:
     """(policy, label) for --policy (a shipped policy or a baseline) or for one seed of the run directory
     `run`. Several run directories are labelled by their config's name, one by its folder's name."""
-    if args.policy in pretrained.PRETRAINED:
-        policy = pretrained.load(args.policy)
-        print(f"{args.policy}: {policy.source}", flush=True)
-        return policy, args.label or args.policy
     if args.policy is not None:   # one BBA per env: the renderer's and benchmark's too
-        policy, label = rollout.policy_for(env, None, 0, "final", args.bba_depth_phase)
+        policy, label = rollout.policy_for(env, None, 0, "final", args.bba_depth_phase, name=args.policy)
+        if args.policy in pretrained.PRETRAINED:
+            print(f"{args.policy}: {policy.source}", flush=True)
         return policy, args.label or label
     policy = runs.load_policy(run, seed_index=seed_index, which=args.which)
     print(f"{Path(run).name}: {policy.source}", flush=True)

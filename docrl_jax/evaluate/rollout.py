@@ -364,8 +364,12 @@ def _shared(policy, settings) -> Any:
 
 
 def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "final",
-               bba_depth_phase: str = "after"):
-    """(policy, method label): one seed of a run directory, or the BBA baseline (run None)."""
+               bba_depth_phase: str = "after", name: str | None = None):
+    """(policy, method label): the policy shipped as `name` (docrl_jax.pretrained), one seed of a run
+    directory, or the BBA baseline (neither)."""
+    from docrl_jax import pretrained
+    if name in pretrained.PRETRAINED:
+        return pretrained.load(name), name
     if run is None:
         from docrl_jax.baselines import bba
         return (_shared(bba.make_bba(env.params, depth_phase=bba_depth_phase), ("bba", id(env), bba_depth_phase)),

@@ -363,10 +363,7 @@ def _render(args, cfg: dict) -> int:
     with contextlib.ExitStack() as contexts:
         renderers = {i: contexts.enter_context(Renderer(m, env.params, args.width, args.height, args.camera,
                                                         fan=not args.no_fan)) for i, m in models.items()}
-        if args.policy in pretrained.PRETRAINED:
-            policy, label = pretrained.load(args.policy), args.policy
-        else:
-            policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase)
+        policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase, name=args.policy)
         if getattr(policy, "source", ""):
             print(f"{label}: {policy.source}", flush=True)
         if args.tank is not None:
