@@ -7,10 +7,13 @@
 # `lane N`, which calls, one after the other:
 #   train NAME LABEL TRAIN_ARGS...   python -m docrl_jax.train TRAIN_ARGS into runs/NAME, packed policy-only
 #   evaluate NAME LABEL RUN_DIRS... -- ROBUSTNESS_ARGS...   python -m docrl_jax.robustness into eval/NAME
+#   evaluator NAME LABEL RUN_DIRS... -- EVALUATE_ARGS...    python -m docrl_jax.evaluate (the paper's protocol)
+#     into eval/NAME, without figures; packed without the trajectories (.npz) and with the training log
+#     of each run evaluated; its compiled trials are kept in JAX's cache of the round (eval_cache)
 # The first call installs the carried wheels (.whl), copies the code aside and starts every lane in its
 # own process session; each later call only waits. Every call waits up to DEADLINE_S (default 540),
-# prints the lanes' times, the logs' last lines and the robustness tables, and copies the packed results
-# (one archive per launch and per evaluation) to $OUT.
+# prints the lanes' times, the logs' last lines, the robustness tables and the evaluator's successes, and
+# copies the packed results (one archive per launch and per evaluation) to $OUT.
 set -u
 round=$1 deadline=${2:-540}
 R=/tmp/round_$(basename "$round" .sh); mkdir -p $R/runs $R/eval $R/pack
@@ -39,6 +42,14 @@ evaluate() { name=\$1 label=\$2; shift 2; runs=()
   python3 -m docrl_jax.robustness "\${runs[@]}" --label "\$label" --out \$R/eval/\$name "\$@" > \$R/eval_\$name.log 2>&1
   echo "\$name eval rc=\$? \$(date +%s)" >> \$R/times
   (cd \$R && tar czf pack/eval_\$name.tgz eval/\$name eval_\$name.log \$(ls \$name.log 2>/dev/null)); }
+evaluator() { name=\$1 label=\$2; shift 2; runs=()
+  while [ "\$1" != "--" ]; do runs+=("\$1"); shift; done; shift
+  echo "\$name eval start \$(date +%s)" >> \$R/times
+  JAX_COMPILATION_CACHE_DIR=\$R/eval_cache python3 -m docrl_jax.evaluate --run "\${runs[@]}" --label "\$label" \\
+    --out \$R/eval/\$name --figures 0 "\$@" > \$R/eval_\$name.log 2>&1
+  echo "\$name eval rc=\$? \$(date +%s)" >> \$R/times
+  logs=(); for run in "\${runs[@]}"; do [ -e \$R/\$(basename \$run).log ] && logs+=(\$(basename \$run).log); done
+  (cd \$R && tar czf pack/eval_\$name.tgz --exclude='*.npz' eval/\$name eval_\$name.log "\${logs[@]}"); }
 source $PWD/$round
 lane \$1
 touch \$R/lane_done_\$1
@@ -51,6 +62,13 @@ while [ $(( $(date +%s) - t0 )) -lt $deadline ] && ! alldone; do sleep 3; done
 cat $R/pack/gpu.txt $R/times 2>/dev/null
 for f in $R/*.log; do echo "== $(basename $f): $(tail -n 2 $f | cut -c1-250)"; done
 for f in $R/eval/*/robustness.md; do echo "== $f"; grep -E "^\| " $f | head -30; done
+for f in $R/eval/*/results.csv; do [ -e "$f" ] && python3 - "$f" <<'SUCCESS'
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+print("==", sys.argv[1].split("/")[-2] + ":", "  ".join(f"s{r['scenario']} {'A-W' if r['direction'] == 'air_to_water' else 'W-A'}"
+                                                f" {r['successes']}/{r['trials']}" for r in rows))
+SUCCESS
+done
 cp $R/times $R/pack/ 2>/dev/null
 # One archive of the launches' and evaluations' packs ($OUT takes 8 files).
 tar cf $OUT/$(basename $R).tar -C $R pack
