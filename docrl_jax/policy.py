@@ -20,9 +20,11 @@ from typing import Any, Callable
 from docrl_jax.moved import moved_names
 
 
-# Which policy of a run's checkpoint to load: the run's (final) policy, or each seed's best evaluated one
-# (docrl_jax.train.best_policy). Shared by load_policy and the evaluator's --which.
+# Which policy of a run's checkpoint to load, when asked explicitly: the final one (the Polyak-averaged actor at
+# the checkpoint), or each seed's best evaluated one (docrl_jax.train.best_policy). Asking for neither (None)
+# loads the run's policy, runs.checkpoint_policy's rule; every --which offers these and says that rule.
 CHECKPOINT_POLICIES = ("final", "best")
+RUN_POLICY_RULE = "best where the run kept one (train.track_best_policy), else final"
 
 
 @dataclass(frozen=True)
@@ -32,6 +34,7 @@ class Policy:
     init_carry: Callable[[], Any]
     act: Callable[[Any, Any, Any, dict, Any], tuple[Any, Any]]
     source: str = ""   # where the params came from (load_policy: final or best, which checkpoint)
+    which: str = ""    # load_policy: the checkpoint's policy it loaded, "final" or "best"; "" for any other policy
 
 
 moved_names(__name__, {"RunDirError": "docrl_jax.errors"})

@@ -10,13 +10,15 @@ A sweep directory (docrl_jax.train.sweep) holds `sweep.json` and one `cNN/` run-
 combination, without checkpoints.
 
 `load_policy(run_dir, seed_index, which)` returns the evaluation contract's `Policy`
-(docrl_jax.policy) for a finished or interrupted run: the final policy of the latest checkpoint, or
-with which="best" that checkpoint's best policy of the seed (docrl_jax.train.best_policy).
-`Policy.source` says which.
+(docrl_jax.policy) for a finished or interrupted run, from its latest checkpoint: by default the run's
+policy, the seed's best evaluated one (docrl_jax.train.best_policy) where the checkpoint keeps best
+policies, else the final one (`checkpoint_policy` is that rule); which="final" or "best" asks for one.
+`Policy.which` and `Policy.source` say which was loaded, `policy_label` marks it in a table.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import jax
@@ -25,7 +27,7 @@ import jax.numpy as jnp
 from docrl_jax import checkpoint
 from docrl_jax.config import Config, ConfigError, load_config
 from docrl_jax.errors import RunDirError, not_the_data, short_reason
-from docrl_jax.policy import CHECKPOINT_POLICIES, Policy
+from docrl_jax.policy import CHECKPOINT_POLICIES, RUN_POLICY_RULE, Policy
 
 CONFIG_FILE = "config.yaml"
 METRICS_FILE = "metrics.csv"
@@ -78,24 +80,60 @@ def describe_best(meta: dict, seed_index: int) -> str:
     return f"best policy of seed index {seed_index}: the evaluation at env step {step:,} ({', '.join(parts)})"
 
 
-def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") -> Policy:
-    """The deterministic policy of seed `seed_index` from the latest checkpoint of `run_dir`: the run's
-    policy at that checkpoint (`which="final"`, what tables report) or the best evaluated one so far
-    (`which="best"`). Raises RunDirError for a missing directory, config or checkpoint, a corrupt
-    checkpoint, an incompatible config, a seed index out of range, or a run without best policies."""
+def _check_which(which: str | None) -> None:
+    if which is not None and which not in CHECKPOINT_POLICIES:
+        raise RunDirError(f"which={which!r}: valid choices are {', '.join(CHECKPOINT_POLICIES)}, or None for "
+                          f"the run's policy ({RUN_POLICY_RULE})")
+
+
+def _latest_step(run_dir: str | Path) -> int:
+    step = checkpoint.latest_step(run_dir)
+    if step is None:
+        raise RunDirError(f"{str(run_dir)!r} has no checkpoint under {checkpoint.CHECKPOINT_DIR}/")
+    return step
+
+
+def _kept_policy(mngr, step: int, which: str | None) -> str:
+    # The run's policy is its best evaluated one where kept: a final policy is one sample of the swing of
+    # the last evaluations, and some seeds end below their best (docs/BENCHMARKS.md, the 10-seed table).
+    if which is not None:
+        return which
+    return "best" if checkpoint.has_best(mngr, step) else "final"
+
+
+def checkpoint_policy(run_dir: str | Path, which: str | None = None) -> str:
+    """Which policy of the latest checkpoint `load_policy(run_dir, which=which)` loads, "final" or "best":
+    `which` itself when given; None = the run's policy, "best" where the checkpoint keeps best policies
+    (train.track_best_policy), else "final". Raises RunDirError for an invalid `which` or a run directory
+    without a checkpoint."""
+    _check_which(which)
+    return _kept_policy(checkpoint.manager(run_dir), _latest_step(run_dir), which)
+
+
+def policy_label(name: str, which: str) -> str:
+    """A method's name in a table for a run's policy: " (best)" marks a best policy (a final one is unmarked,
+    as in every table made before best policies were the default)."""
+    return name + " (best)" if which == "best" else name
+
+
+def load_policy(run_dir: str | Path, seed_index: int = 0, which: str | None = None) -> Policy:
+    """The deterministic policy of seed `seed_index` from the latest checkpoint of `run_dir`: which=None
+    (default) the run's policy (`checkpoint_policy`: the best evaluated one where kept, else the final
+    one), "final" the Polyak-averaged actor at that checkpoint, "best" the best evaluated one so far.
+    `Policy.which` says which it loaded. Raises RunDirError for a missing directory, config or checkpoint,
+    a corrupt checkpoint, an incompatible config, a seed index out of range, or which="best" on a run
+    without best policies."""
     from docrl_jax.algorithms import make_agent
 
-    if which not in CHECKPOINT_POLICIES:
-        raise RunDirError(f"which={which!r}: valid choices are {', '.join(CHECKPOINT_POLICIES)}")
+    _check_which(which)
     config = read_config(run_dir)
     if not 0 <= seed_index < config.train.num_seeds:
         raise RunDirError(f"seed_index={seed_index}: the run has num_seeds={config.train.num_seeds} "
                           f"(valid indices 0..{config.train.num_seeds - 1})")
-    step = checkpoint.latest_step(run_dir)
-    if step is None:
-        raise RunDirError(f"{str(run_dir)!r} has no checkpoint under {checkpoint.CHECKPOINT_DIR}/")
+    step = _latest_step(run_dir)
     agent = make_agent(config)
     mngr = checkpoint.manager(run_dir)
+    which = _kept_policy(mngr, step, which)
     if which == "best" and not checkpoint.has_best(mngr, step):
         raise RunDirError(f"checkpoint {step} in {str(run_dir)!r} holds no best policy (trained with "
                           f"train.track_best_policy false, or before best-policy tracking existed); "
@@ -110,7 +148,7 @@ def load_policy(run_dir: str | Path, seed_index: int = 0, which: str = "final") 
     params = jax.tree.map(lambda x: x[seed_index], stacked)
     source = (describe_best(meta["best"], seed_index) + f", kept in checkpoint {step}" if which == "best"
               else f"final policy of seed index {seed_index}: checkpoint {step}")
-    return actor_policy(config, params, source, agent)
+    return replace(actor_policy(config, params, source, agent), which=which)
 
 
 def actor_policy(config: Config, params, source: str = "", agent=None) -> Policy:

@@ -47,6 +47,14 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+def add_which_argument(p: argparse.ArgumentParser) -> None:
+    """--which, as every command that loads a run's policy takes it (evaluate, robustness, render, export)."""
+    from docrl_jax.policy import CHECKPOINT_POLICIES, RUN_POLICY_RULE
+    p.add_argument("--which", default=None, choices=CHECKPOINT_POLICIES,
+                   help=f"with --run, which policy of the latest checkpoint: final (the Polyak-averaged actor at "
+                        f"it) or best (each seed's best evaluated one); default the run's policy: {RUN_POLICY_RULE}")
+
+
 def parse_scenarios(text: str) -> list[int]:
     try:
         vals = [int(t) for t in text.split(",") if t.strip() != ""]
@@ -128,7 +136,6 @@ def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARI
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from docrl_jax.policy import CHECKPOINT_POLICIES
     p = OneLineParser(prog="python -m docrl_jax.evaluate", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
@@ -143,9 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "the run trained (train.num_seeds in its config.yaml). Several seeds also give a table of "
                         "mean and spread over seeds. With several run directories each gives these seeds, "
                         "numbered 0, 1, ... in the order given (results.json maps them back)")
-    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
-                   help="with --run: the final policy of the latest checkpoint (default; what tables report) "
-                        "or each seed's best evaluated policy kept beside it (train.track_best_policy)")
+    add_which_argument(p)
     p.add_argument("--label", help="method name in the tables (default: the --policy name, 'BBA' for bba, or the run dir's name)")
     p.add_argument("--trials", type=int, default=100, help="trials per scenario and direction (default 100)")
     p.add_argument("--scenarios", default=None, help="comma-separated scenarios (default 1,2,3)")

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax import pretrained
+from docrl_jax import pretrained, runs
 from docrl_jax.evaluate import cli, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
@@ -67,7 +67,6 @@ def parse_perturbations(text: str) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from docrl_jax.policy import CHECKPOINT_POLICIES
     p = cli.OneLineParser(prog="python -m docrl_jax.robustness", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--run", metavar="RUN_DIR", nargs="+", action="append",
@@ -79,8 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a method's name in the tables, once per method in order (each --run, then --policy)")
     p.add_argument("--seed-index", default="all",
                    help="seed(s) of each --run, comma-separated, or 'all' (default: every seed the run trained)")
-    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
-                   help="with --run: the final policy (default) or each seed's best evaluated one")
+    cli.add_which_argument(p)
     p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
     p.add_argument("--tests", default=",".join(TESTS), help=f"comma-separated: {', '.join(TESTS)} (default all)")
     p.add_argument("--perturbations", default="all",
@@ -199,8 +197,9 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
             name = None   # needs --label
         else:
             name = names.pop() if len(group) > 1 else Path(group[0]).resolve().name
-        if name is not None and args.which == "best":
-            name += " (best)"
+        kept = group_policy(group, args.which)
+        if name is not None:
+            name = runs.policy_label(name, kept)
         vehicles = {json.dumps(run_dirs.run_vehicle(run), sort_keys=True) for run in group}
         if len(vehicles) > 1:
             raise UsageError(f"--run {' '.join(group)}: the runs fly different vehicles ({'; '.join(sorted(vehicles))}, "
@@ -225,6 +224,17 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
     if len(set(labels)) != len(labels):
         raise UsageError(f"methods share a label ({', '.join(labels)}): give each method its own --label")
     return methods
+
+
+def group_policy(group: list[str], which: str | None) -> str:
+    """The policy ("final" or "best") that --which loads from every run directory of one --run: the same in
+    each, or a UsageError (one method's seeds are all final or all best policies)."""
+    kept = {run: runs.checkpoint_policy(run, which) for run in group}
+    if len(set(kept.values())) > 1:
+        raise UsageError(f"--run {' '.join(group)}: the runs keep different policies ("
+                         + ", ".join(f"{Path(r).name} {w}" for r, w in kept.items())
+                         + "; best where train.track_best_policy kept one): give --which final, or each its own --run")
+    return kept[group[0]]
 
 
 def output_dir(out: str | None) -> Path:
@@ -283,7 +293,8 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
         "methods": [{"label": m.label, "runs": m.runs, "seeds": {str(i): {"run": r, "seed_index": s}
                                                                 for i, (r, s) in zip(m.seed_indices, m.sources)}}
                     for m in cfg["methods"]],
-        "which": args.which if args.run else None, "bba_depth_phase": args.bba_depth_phase if args.policy else None,
+        "which": {m.label: group_policy(m.runs, args.which) for m in cfg["methods"] if m.runs},
+        "bba_depth_phase": args.bba_depth_phase if args.policy else None,
         "tests": cfg["tests"], "scenarios": cfg["scenarios"], "directions": cfg["directions"],
         "trials": cfg["trials"], "layouts": cfg["layouts"], "tank": cfg["tank"], "tank_names": cfg.get("tank_names"),
         "max_steps": args.max_steps, "seed": args.seed,

@@ -359,14 +359,14 @@ def _shared(policy, settings) -> Any:
     """Policies of the same settings get the first one's functions, so a process that draws several
     (or draws again) compiles their rollout once (it is cached per policy function)."""
     first = _SHARED.setdefault(settings, policy)
-    return policy if first is policy else replace(first, params=policy.params, source=policy.source,
-                                                  name=policy.name)
+    return policy if first is policy else replace(policy, init_carry=first.init_carry, act=first.act)
 
 
-def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "final",
+def policy_for(env, run: str | None = None, seed_index: int = 0, which: str | None = None,
                bba_depth_phase: str = "after", name: str | None = None):
     """(policy, method label): the policy shipped as `name` (docrl_jax.pretrained), one seed of a run
-    directory, or the BBA baseline (neither)."""
+    directory (`which` as runs.load_policy's: None = the run's policy; the label marks a best one), or the
+    BBA baseline (neither)."""
     from docrl_jax import pretrained
     if name in pretrained.PRETRAINED:
         return pretrained.load(name), name
@@ -376,4 +376,5 @@ def policy_for(env, run: str | None = None, seed_index: int = 0, which: str = "f
                 bba.label(bba_depth_phase))
     from docrl_jax import runs
     policy = runs.load_policy(run, seed_index=seed_index, which=which)
-    return _shared(policy, ("run", runs.read_config(run).agent)), Path(run).resolve().name
+    return (_shared(policy, ("run", runs.read_config(run).agent)),
+            runs.policy_label(Path(run).resolve().name, policy.which))

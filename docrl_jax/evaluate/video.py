@@ -189,17 +189,16 @@ def parse_direction(text: str) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.envs.rendering import CAMERAS
-    from docrl_jax.evaluate.cli import OneLineParser
-    from docrl_jax.policy import CHECKPOINT_POLICIES
+    from docrl_jax.evaluate.cli import OneLineParser, add_which_argument
     p = OneLineParser(prog="python -m docrl_jax.render", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory: its final policy (or --which best)")
+    src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory: its policy (--which)")
     src.add_argument("--policy", metavar="NAME",
                      help=f"a built-in policy: {', '.join(pretrained.POLICY_NAMES)} (default without --run: "
                           f"{DEFAULT_POLICY}, shipped in the package)")
     p.add_argument("--seed-index", type=int, default=0, help="which seed of --run (default 0)")
-    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES, help="with --run: final (default) or best")
+    add_which_argument(p)
     p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
     p.add_argument("--scenario", type=int, default=None, help="1, 2 or 3 (default 2, the training scenario)")
     p.add_argument("--tank", metavar="PATH|DIR|NAME",

@@ -2,7 +2,7 @@
 reference, with a `policy.json` manifest (docs/DEPLOY.md).
 
     from docrl_jax.export import export_policy
-    manifest = export_policy("runs/d", "export/d", seed_index=0, which="final")
+    manifest = export_policy("runs/d", "export/d", seed_index=0)    # the run's policy (which= as load_policy)
 
     manifest = export_shipped("td3_lstm", "export/td3_lstm")        # a policy shipped in the package
 
@@ -141,17 +141,18 @@ def export_actor(config, params, out_dir: str | Path, source: dict[str, Any],
     return manifest
 
 
-def export_policy(run_dir: str | Path, out_dir: str | Path, seed_index: int = 0, which: str = "final",
+def export_policy(run_dir: str | Path, out_dir: str | Path, seed_index: int = 0, which: str | None = None,
                   formats: Sequence[str] = FORMATS, force: bool = False, opset: int = DEFAULT_OPSET,
                   platforms: Sequence[str] = ("cpu",)) -> dict[str, Any]:
-    """Exports seed `seed_index`'s final (or best) policy of the run in `run_dir` to `out_dir`; returns
+    """Exports seed `seed_index`'s policy of the run in `run_dir` to `out_dir` (`which` as runs.load_policy's:
+    None = the run's policy, best where kept, else final; the manifest's source.which says which); returns
     the manifest. Raises RunDirError (the run), ExportError (the output directory, a failed check),
     OSError (an output directory that cannot be written), ImportError (ONNX without its packages)."""
     from docrl_jax import checkpoint, runs
     formats = check_formats(formats)
     policy = runs.load_policy(run_dir, seed_index=seed_index, which=which)
     config = runs.read_config(run_dir)
-    source = {"run_dir": str(Path(run_dir).resolve()), "seed_index": seed_index, "which": which,
+    source = {"run_dir": str(Path(run_dir).resolve()), "seed_index": seed_index, "which": policy.which,
               "checkpoint_env_steps": checkpoint.latest_step(run_dir), "policy": policy.source}
     return export_actor(config, policy.params, out_dir, source, formats, force, opset, platforms)
 

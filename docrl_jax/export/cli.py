@@ -1,8 +1,8 @@
 """`python -m docrl_jax.export`: a trained run's actor as deployment artefacts (docs/DEPLOY.md).
 
     python -m docrl_jax.export --policy td3_lstm --out export/td3_lstm     # a policy shipped in the package
-    python -m docrl_jax.export --run runs/d --out export/d
-    python -m docrl_jax.export --run runs/d --seed-index 2 --which best --out export/d2_best
+    python -m docrl_jax.export --run runs/d --out export/d     # the run's policy: best where kept, else final
+    python -m docrl_jax.export --run runs/d --seed-index 2 --which final --out export/d2_final
     python -m docrl_jax.export --run runs/d --out export/d --formats stablehlo,numpy --force
 
 Bad input (an unknown --policy, a missing run, a seed index the run does not have, --which best on a run that kept no
@@ -24,8 +24,7 @@ PROG = "python -m docrl_jax.export"
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from docrl_jax.evaluate.cli import OneLineParser
-    from docrl_jax.policy import CHECKPOINT_POLICIES
+    from docrl_jax.evaluate.cli import OneLineParser, add_which_argument
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0],
                       formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group(required=True)
@@ -33,8 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument("--policy", metavar="NAME",
                      help=f"a trained policy shipped in the package: {', '.join(pretrained.PRETRAINED)}")
     p.add_argument("--seed-index", type=int, default=0, help="which seed of the run (default 0)")
-    p.add_argument("--which", default="final", choices=CHECKPOINT_POLICIES,
-                   help="the final policy of the latest checkpoint (default) or the seed's best evaluated one")
+    add_which_argument(p)
     p.add_argument("--out", metavar="DIR", required=True, help="output directory (created)")
     p.add_argument("--force", action="store_true", help="replace an export already in --out")
     p.add_argument("--formats", default=",".join(FORMATS),
@@ -72,7 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not platforms:
             raise ExportError("--platforms: give at least one, e.g. cpu")
         check_formats(formats)
-        if args.policy is not None and (args.which != "final" or args.seed_index != 0):
+        if args.policy is not None and (args.which is not None or args.seed_index != 0):
             raise ExportError("--which and --seed-index choose within a run: a shipped --policy is one seed's final "
                               "policy")
         if args.policy is not None:
