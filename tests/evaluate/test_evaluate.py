@@ -315,14 +315,16 @@ def test_cli_curves_only(tmp_path, no_compile):
 
 @pytest.fixture
 def fake_trainer(monkeypatch, tmp_path):
-    """A stand-in `docrl_jax.runs.load_policy` that returns the scripted oracle for seeds 0-1."""
+    """A stand-in `docrl_jax.runs.load_policy` that returns the scripted oracle for seeds 0-1, as a run that kept
+    best policies gives them (which=None: the best)."""
     oracle = straight_line()
 
-    def load_policy(run_dir, seed_index=0, which="final"):
+    def load_policy(run_dir, seed_index=0, which=None):
         run_dirs.check_run_dir(run_dir)
         if seed_index > 1:
             raise RunDirError(f"run directory {run_dir!r} has seeds 0, 1; no seed index {seed_index}")
-        return dataclasses.replace(oracle, source=f"{which} policy of seed index {seed_index}")
+        which = which or "best"
+        return dataclasses.replace(oracle, source=f"{which} policy of seed index {seed_index}", which=which)
     monkeypatch.setattr("docrl_jax.runs.load_policy", load_policy)
     run = tmp_path / "oracle_run"
     run.mkdir()
@@ -332,18 +334,19 @@ def fake_trainer(monkeypatch, tmp_path):
 
 def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
     out = tmp_path / "out"
-    assert cli.main(["--run", str(fake_trainer), "--which", "best", "--seed-index", "0,1", "--trials", str(N),
+    assert cli.main(["--run", str(fake_trainer), "--which", "final", "--seed-index", "0,1", "--trials", str(N),
                           "--scenarios", "1",
                           "--directions", "a-w", "--max-steps", str(MAX_STEPS), "--figures", "2",
                           "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]",  # the module's env and N: no new compile
                           "--out", str(out)]) == 0
     md = (out / "results.md").read_text()
-    assert "## Over seeds" in md and "| A-W oracle_run (best) | " in md and f"{N:.1f} ± 0.0/{N} [{N}, {N}]" in md
+    assert "## Over seeds" in md and "| A-W oracle_run | " in md and f"{N:.1f} ± 0.0/{N} [{N}, {N}]" in md
     js = json.loads((out / "results.json").read_text())
     assert [r["seed_index"] for r in js["results"]] == [0, 1] and js["over_seeds"][0]["successes_mean"] == N
-    assert len(js["trials"]) == 2 * N and js["meta"]["seed_indices"] == [0, 1] and js["meta"]["which"] == "best"
-    assert js["meta"]["policy_sources"] == {"0": "best policy of seed index 0", "1": "best policy of seed index 1"}
-    assert "oracle_run: best policy of seed index 1" in capsys.readouterr().out
+    assert len(js["trials"]) == 2 * N and js["meta"]["seed_indices"] == [0, 1]
+    assert js["meta"]["which"] == {"0": "final", "1": "final"}   # asked for explicitly: no " (best)" in the label
+    assert js["meta"]["policy_sources"] == {"0": "final policy of seed index 0", "1": "final policy of seed index 1"}
+    assert "oracle_run: final policy of seed index 1" in capsys.readouterr().out
     assert (out / "trajectory_s1_air_to_water_seed0.png").exists()
     assert (out / "trajectories_s1_air_to_water_seed1.npz").exists()
 
@@ -450,7 +453,7 @@ def test_cli_run_seeds_share_one_compile(monkeypatch, tmp_path):
     from docrl_jax.policy import Policy
     base = straight_line()
 
-    def load_policy(run_dir, seed_index=0, which="final"):  # fresh closures on every call, as the real loader makes
+    def load_policy(run_dir, seed_index=0, which=None):  # fresh closures on every call, as the real loader makes
         return Policy(name="p", params={"dive": jnp.asarray(seed_index == 1)},
                       init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a))
     monkeypatch.setattr("docrl_jax.runs.load_policy", load_policy)
@@ -474,7 +477,7 @@ def test_cli_several_runs_are_the_seeds_of_one_method(monkeypatch, tmp_path, cap
     from docrl_jax.policy import Policy
     base = straight_line()
 
-    def load_policy(run_dir, seed_index=0, which="final"):
+    def load_policy(run_dir, seed_index=0, which=None):
         return Policy(name="p", params={"dive": jnp.asarray(str(run_dir).endswith("B"))},
                       init_carry=lambda: base.init_carry(), act=lambda *a: base.act(*a), source=f"{run_dir}")
     monkeypatch.setattr("docrl_jax.runs.load_policy", load_policy)
@@ -510,8 +513,10 @@ def test_cli_run_defaults_to_every_trained_seed(fake_trainer, tmp_path, capsys):
                           "--max-steps", str(MAX_STEPS), "--figures", "0",
                           "--env", f"z_bounds=[{LOW_FLOOR[0]}, {LOW_FLOOR[1]}]", "--out", str(out)]) == 0
     js = json.loads((out / "results.json").read_text())
-    assert [r["seed_index"] for r in js["results"]] == [0, 1]
-    assert js["meta"]["policy_sources"] == {"0": "final policy of seed index 0", "1": "final policy of seed index 1"}
+    assert [r["seed_index"] for r in js["results"]] == [0, 1] and {r["method"] for r in js["results"]} == {
+        "oracle_run (best)"}   # the run's policy by default, and the label says which it was
+    assert js["meta"]["which"] == {"0": "best", "1": "best"}
+    assert js["meta"]["policy_sources"] == {"0": "best policy of seed index 0", "1": "best policy of seed index 1"}
     (fake_trainer / "config.yaml").write_text("algo: oracle\ntrain:\n  num_seeds: many\n")
     with pytest.raises(SystemExit) as e:
         cli.main(["--run", str(fake_trainer), "--out", str(tmp_path / "bad")])

@@ -121,6 +121,7 @@ def test_command_renders_a_trained_policy(tmp_path, capsys):
     assert video.main(argv) == 0
     text = capsys.readouterr().out
     assert "trial 1/2 of 3: timeout after 12 steps" in text and "trial 2/2 of 3" in text
+    assert "td3_lstm (best): best policy of seed index 0" in text   # the run's policy, labelled as such
     assert f"wrote {out}: 10 frames of 96x48" in text   # 2 trials x (steps 0, 3, 6, 9, 12)
     assert iio.imread(out, index=None).shape == (10, 48, 96, 3)
 

@@ -50,7 +50,7 @@ def test_an_unwritable_out_is_one_line(tmp_path, capsys):
 
 def test_the_manifest_and_an_existing_export(tmp_path, capsys):
     out = tmp_path / "out"
-    assert cli.main(["--run", str(TD3), "--which", "best", "--out", str(out)]) == 0
+    assert cli.main(["--run", str(TD3), "--out", str(out)]) == 0   # the run's policy: it kept a best one
     printed = capsys.readouterr().out
     assert "best policy of seed index 0" in printed and "onnx: policy.onnx" in printed
     manifest = json.loads((out / "policy.json").read_text())
@@ -69,7 +69,7 @@ def test_the_manifest_and_an_existing_export(tmp_path, capsys):
 
     assert "already holds an export" in _refused(capsys, ["--run", str(TD3), "--out", str(out)])
     # --force replaces it, and no file of the old export is left behind
-    assert cli.main(["--run", str(TD3), "--out", str(out), "--formats", "numpy", "--force"]) == 0
+    assert cli.main(["--run", str(TD3), "--which", "final", "--out", str(out), "--formats", "numpy", "--force"]) == 0
     assert not (out / ONNX_FILE).exists()
     assert json.loads((out / "policy.json").read_text())["source"]["which"] == "final"
 
