@@ -28,19 +28,20 @@ import jax.numpy as jnp
 import numpy as np
 
 from docrl_jax.baselines import route
-from docrl_jax.envs import flyability, geometry, layouts
+from docrl_jax.envs import flyability, geometry, guidance, layouts
 from docrl_jax.evaluate import robustness, rollout, tank_sets
 from docrl_jax.evaluate.tables import SHORT, summarize
+from docrl_jax.policy import Policy
 
 DIRECTIONS = ("air_to_water", "water_to_air")
 OUTCOME_NAMES = ("arrived", "collision", "out of bounds", "time-out", "diverged")
 
 
 def plans_of(stack, which, goals, p, crowding: float, batch: int = 25) -> dict:
-    """The follower's params (`route.plan`) of each trial: the free cells and gaps of each layout of
+    """The follower's params (`guidance.plan`) of each trial: the free cells and gaps of each layout of
     `stack` once, then trial i's field to goals[i] in layout which[i], `batch` at a time."""
     cells = jax.lax.map(lambda l: (flyability.free_cells(l, p), flyability.cell_gaps(l)), stack, batch_size=batch)
-    one = lambda a: route.plan_cells(cells[0][a[0]], cells[1][a[0]], p, a[1], crowding)  # noqa: E731
+    one = lambda a: guidance.plan_cells(cells[0][a[0]], cells[1][a[0]], p, a[1], crowding)  # noqa: E731
     return jax.lax.map(one, (which, goals), batch_size=batch)
 
 
@@ -51,8 +52,17 @@ def route_length(field, start) -> jax.Array:
     return jnp.where(jnp.isfinite(flyability.field_at(field, start)), length, jnp.inf)
 
 
-def make_runner(env, policy, max_steps: int):
-    """jit(vmap) over trials of (params, initial state) -> the rollout's records and the diagnosis."""
+_RUNNERS: dict = {}
+
+
+def make_runner(env, policy, max_steps: int, shared: bool = False):
+    """jit(vmap) over trials of (params, initial state) -> the rollout's records and the diagnosis. The
+    follower's params are a plan per trial; with `shared` they are {"plan": a plan per trial, "policy": a
+    learned policy's params, shared over the trials} (`steered`), so policies of one architecture
+    (`rollout.policy_for` shares their act) compile once."""
+    cache_key = (id(env), id(policy.act), max_steps, shared)
+    if cache_key in _RUNNERS:
+        return _RUNNERS[cache_key]
     walls = env.walls
 
     def episode(params, state0):
@@ -70,7 +80,8 @@ def make_runner(env, policy, max_steps: int):
 
         keys = jax.random.split(jax.random.PRNGKey(0), max_steps)   # the follower draws nothing
         (final, _, _), rec = jax.lax.scan(body, (state0, policy.init_carry(), jnp.zeros((), bool)), keys)
-        info, layout, field = final.info, final.sim.layout, params["field"]   # field: route cost (m)
+        plan = params["plan"] if shared else params
+        info, layout, field = final.info, final.sim.layout, plan["field"]   # field: route cost (m)
         end = info["position"]
         obstacle_gaps = jnp.concatenate([geometry.box_distances(layouts.obstacles(layout), end),
                                          geometry.capsule_distances(layouts.obstacles(layout), end)])
@@ -86,24 +97,45 @@ def make_runner(env, policy, max_steps: int):
                 "end_obstacle_gap": jnp.min(obstacle_gaps), "end_obstacle": jnp.argmin(obstacle_gaps),
                 "end_boundary_gap": geometry.signed_distance(layouts.boundary(layout, walls), end)}
 
-    return jax.jit(jax.vmap(episode))
+    _RUNNERS[cache_key] = jax.jit(jax.vmap(episode, in_axes=(guidance.PLAN_AXES if shared else 0, 0)))
+    return _RUNNERS[cache_key]
 
 
-def fly(test: str, stack, which, direction: str, seed: int, max_steps: int, crowding: float) -> dict:
+_STEERED: dict = {}
+
+
+def steered(pilot, guide: bool):
+    """`pilot` as the runner flies it, params {"plan", "policy"}: route-guided (`guidance.guided`) or as it
+    is (the plan only diagnoses). One wrapper per act function, so one compiled runner per architecture."""
+    key = (id(pilot.act), guide)
+    if key not in _STEERED:
+        _STEERED[key] = guidance.guided(pilot) if guide else Policy(
+            pilot.name, None, pilot.init_carry, lambda p, c, o, i, k: pilot.act(p["policy"], c, o, i, k))
+    return _STEERED[key]
+
+
+def fly(test: str, stack, which, direction: str, seed: int, max_steps: int, crowding: float,
+        pilot=None, vehicle=None, guide: bool = True) -> dict:
     """The trips of a robustness layout test (`test`: tanks or structured) in one direction, trip i in
-    layout which[i] of `stack`, flown by the route-follower: `rollout.trial_metrics` plus the diagnosis."""
-    count = len(which)
-    host = rollout.make_eval_env(0, max_steps)
+    layout which[i] of `stack`, flown by the route-follower, or by `pilot` (a learned Policy; a
+    steered by each trip's plan with `guide`, `guidance.guided`) in its `vehicle` (`run_dirs.run_vehicle`):
+    `rollout.trial_metrics` plus the diagnosis."""
+    count, vehicle = len(which), vehicle or {}
+    host = rollout.make_eval_env(0, max_steps, **vehicle)
     start_w, goal_w = robustness.MEDIA[direction]
-    sampler = rollout.make_eval_env(0, max_steps, start_water_fraction=start_w, goal_water_fraction=goal_w)
+    sampler = rollout.make_eval_env(0, max_steps, start_water_fraction=start_w, goal_water_fraction=goal_w, **vehicle)
     keys = robustness.trip_keys(seed, test, 0, direction, count)
     k_reset, _ = jax.vmap(rollout.split_trial_key, out_axes=1)(keys)
-    nominal = rollout.eval_params(0, max_steps)
+    nominal = rollout.eval_params(0, max_steps, **vehicle)
     trips = jax.tree.map(lambda x: x[np.asarray(which)], stack)
     states = rollout.reset_states(sampler, k_reset, trips, rollout.plants_for(nominal, k_reset))
     plans = jax.jit(plans_of, static_argnums=(3, 4))(stack, jnp.asarray(which), states.info["goal"], host.params,
                                                      crowding)
-    out = jax.device_get(make_runner(host, route.route_follower(), max_steps)(plans, states))
+    if pilot is None:
+        policy, params, shared = route.route_follower(), plans, False
+    else:
+        policy, params, shared = steered(pilot, guide), {"plan": plans, "policy": pilot.params}, True
+    out = jax.device_get(make_runner(host, policy, max_steps, shared)(params, states))
     out = {k: np.asarray(v) for k, v in out.items()}
     trials = rollout.trial_metrics(out, host.control_dt, out["positions"][:, 0], np.asarray(states.info["yaw"]))
     trials["goals"] = np.asarray(states.info["goal"])
@@ -186,36 +218,39 @@ def table(rows, title: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trials", type=int, default=350, help="tanks trials per direction (trial i in tank i mod 35)")
-    ap.add_argument("--layouts", type=int, default=100, help="held-out structured layouts (one trial each way)")
-    ap.add_argument("--tank", default="gallery")
-    ap.add_argument("--max-steps", type=int, default=500)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--crowding", type=float, default=route.CROWDING,
-                    help="route cost near solids (route.plan; 0: flyability's shortest routes)")
-    ap.add_argument("--out", default=None, help="folder for the CSVs and summary.md")
-    args = ap.parse_args()
+def pilots(specs: list[str]) -> list[tuple[str, object, dict]]:
+    """(label, Policy, vehicle) of each --policy SPEC: a shipped policy's name, or RUN_DIR[:SEED_INDEX]."""
+    from docrl_jax.evaluate.run_dirs import run_vehicle
+    out = []
+    for spec in specs:
+        from docrl_jax import pretrained
+        if spec in pretrained.PRETRAINED:
+            policy, _ = rollout.policy_for(None, name=spec)
+            out.append((spec, policy, run_vehicle(None, spec)))
+            continue
+        run, _, index = spec.partition(":")
+        policy, name = rollout.policy_for(None, run, int(index or 0), which="final")   # as the tables before
+        out.append((f"{name}_s{int(index or 0)}", policy, run_vehicle(run)))
+    return out
+
+
+def evaluate_one(args, pilot, vehicle, names, stack, tank_of, family_names, family_of, held, out_dir) -> str:
+    """The gallery's and the structured set's trials both ways, by the follower (pilot None) or `pilot`;
+    the tables as text, the CSVs into `out_dir` when given."""
     from docrl_jax.envs import structures
     t_all = time.time()
-    params = rollout.make_eval_env(0, args.max_steps).params
-    names, stack = tank_sets.load(args.tank, params)
-    tank_of = tank_sets.tank_index(args.trials, len(names))
-    family_names = list(dict.fromkeys(family(n) for n in names))
-    family_of = np.array([family_names.index(family(names[t])) for t in tank_of])
-    held = structures.held_out_set(args.layouts, params)
+    guide = not args.unguided
     tank_rows, family_rows, struct_rows, failed, seconds = [], [], [], [], {}
     for direction in DIRECTIONS:
         t0 = time.time()
-        trials = fly("tanks", stack, tank_of, direction, args.seed, args.max_steps, args.crowding)
+        trials = fly("tanks", stack, tank_of, direction, args.seed, args.max_steps, args.crowding, pilot, vehicle, guide)
         seconds[f"tanks {SHORT[direction]}"] = round(time.time() - t0, 1)
         tank_rows += rows_by(tank_of, names, trials, direction)
         family_rows += rows_by(family_of, family_names, trials, direction)
         failed += failures("tanks", [names[t] for t in tank_of], trials, direction)
         t0 = time.time()
         trials = fly("structured", held.layouts, np.arange(args.layouts), direction, args.seed, args.max_steps,
-                     args.crowding)
+                     args.crowding, pilot, vehicle, guide)
         seconds[f"structured {SHORT[direction]}"] = round(time.time() - t0, 1)
         fam = np.asarray(held.family)
         struct_rows += rows_by(fam, list(structures.FAMILIES), trials, direction)
@@ -228,16 +263,46 @@ def main() -> None:
                       table(struct_rows, f"Held-out structured set, {args.layouts} layouts, per family"),
                       "Arrivals / trials (collisions, out of bounds, time-outs).\n",
                       f"Wall time (s, compile included): {seconds}\n"])
-    print(text)
-    for f in failed:
-        print(f)
-    if args.out:
-        out = Path(args.out)
+    if out_dir:
+        out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         write_csv(out / "tanks.csv", family_rows + tank_rows, CSV_FIELDS)
         write_csv(out / "structured.csv", struct_rows, CSV_FIELDS)
         write_csv(out / "failures.csv", failed, FAILURE_FIELDS)
         (out / "summary.md").write_text(text)
+    return text
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=350, help="tanks trials per direction (trial i in tank i mod 35)")
+    ap.add_argument("--layouts", type=int, default=100, help="held-out structured layouts (one trial each way)")
+    ap.add_argument("--tank", default="gallery", help="the tanks test's set: gallery, a tank file or a folder of them")
+    ap.add_argument("--max-steps", type=int, default=500)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--crowding", type=float, default=guidance.CROWDING,
+                    help="route cost near solids (guidance.plan; 0: flyability's shortest routes)")
+    ap.add_argument("--policy", action="append", default=[], metavar="SPEC",
+                    help="fly a learned policy instead of the follower, steered by the route (guidance.guided): a "
+                         "shipped policy's name or RUN_DIR[:SEED_INDEX]; repeat for several (out/<label>/ each)")
+    ap.add_argument("--unguided", action="store_true", help="with --policy: fly it as it is (mapless), same trials")
+    ap.add_argument("--out", default=None, help="folder for the CSVs and summary.md")
+    args = ap.parse_args()
+    from docrl_jax.envs import structures
+    params = rollout.make_eval_env(0, args.max_steps).params
+    names, stack = tank_sets.load(args.tank, params)
+    tank_of = tank_sets.tank_index(args.trials, len(names))
+    family_names = list(dict.fromkeys(family(n) for n in names))
+    family_of = np.array([family_names.index(family(names[t])) for t in tank_of])
+    held = structures.held_out_set(args.layouts, params)
+    sets = (names, stack, tank_of, family_names, family_of, held)
+    if not args.policy:
+        print(evaluate_one(args, None, None, *sets, args.out))
+        return
+    for label, pilot, vehicle in pilots(args.policy):
+        out_dir = Path(args.out) / label if args.out else None
+        print(f"## {label}{'' if args.unguided else ' (route-guided)'}\n")
+        print(evaluate_one(args, pilot, vehicle, *sets, out_dir), flush=True)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from docrl_jax.baselines import route
-from docrl_jax.envs import tanks
+from docrl_jax.envs import guidance, tanks
 from docrl_jax.evaluate import rollout
 
 MAX_STEPS = 250
@@ -36,7 +36,7 @@ def flights(tmp_path_factory):
     goal = state.info["goal"][0]
     one = jax.tree.map(lambda x: x[0], layout)
     out = {}
-    for name, params in (("route", route.plan(one, env.params, goal)), ("straight", route.straight_plan(goal))):
+    for name, params in (("route", guidance.plan(one, env.params, goal)), ("straight", route.straight_plan(goal))):
         out[name] = rollout.run_from_states(env, route.route_follower(params), state, jax.random.PRNGKey(0)[None],
                                             MAX_STEPS)
     return state, out

@@ -195,6 +195,13 @@ def field_at(field: jax.Array, point: jax.Array) -> jax.Array:
     return jnp.where(inside, field[idx[0], idx[1], idx[2]].astype(jnp.float32), jnp.inf)
 
 
+def goal_seeds(free: jax.Array, goal: jax.Array, radius: float) -> jax.Array:
+    """bool (X, Y, Z): the free cells within `radius` of `goal` (an arrival there ends the trip); where
+    none is, the free cells nearest the goal (within a cell's diagonal of the nearest)."""
+    gap = jnp.where(free, jnp.linalg.norm(cell_centres() - goal, axis=-1), jnp.inf)
+    return free & (gap <= jnp.maximum(radius, jnp.min(gap) + GRID_STEP * np.sqrt(3.0)))
+
+
 def check_with_fields(layout: layouts.Layout, p: EnvParams, straight: bool = True) -> tuple[Route, jax.Array]:
     """(`check`'s Route, the two distance fields (2, X, Y, Z)): route length (m) from every free cell to
     the water region's cells (A-W's goals) and to the air region's (W-A's); the trainer's route reward

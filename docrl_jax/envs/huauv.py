@@ -39,6 +39,19 @@ OBS_LAYOUT = {"ranges": slice(0, 20), "prev_action": slice(20, 23), "bearing": 2
               "extra_beams": slice(26, None)}   # every range after the paper's 26: vertical, then slanted
 
 
+GOAL_FEATURES = slice(sensors.NUM_BEAMS + ACTION_SIZE, sensors.NUM_BEAMS + ACTION_SIZE + 3)  # where they sit in obs
+
+
+def goal_features(position, yaw, goal) -> jax.Array:
+    """The observation's three goal floats (obs[GOAL_FEATURES]): the goal's bearing from the heading / pi,
+    its elevation / (pi / 2), its distance / DIST_SCALE capped at 1."""
+    rel = goal - position
+    bearing = jnp.arctan2(rel[1], rel[0]) - yaw
+    bearing = jnp.arctan2(jnp.sin(bearing), jnp.cos(bearing))
+    elevation = jnp.arctan2(rel[2], jnp.linalg.norm(rel[:2]))
+    return jnp.stack([bearing / jnp.pi, elevation / (jnp.pi / 2), jnp.minimum(jnp.linalg.norm(rel) / DIST_SCALE, 1.0)])
+
+
 def observation_bounds(size: int = OBS_SIZE) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) of each of `size` observation floats (an env's `observation_size`): the ranges, the
     distance and the extra beams' ranges in [0, 1], the rest in [-1, 1]."""
@@ -360,15 +373,8 @@ class HUAUVEnv:
 
     # ------------------------------------------------------------------ helpers
     def _observe(self, ranges, underwater, action, position, rot, goal):
-        rel = goal - position
-        bearing = jnp.arctan2(rel[1], rel[0]) - physics.yaw_of(rot)
-        bearing = jnp.arctan2(jnp.sin(bearing), jnp.cos(bearing))
-        elevation = jnp.arctan2(rel[2], jnp.linalg.norm(rel[:2]))
-        dist = jnp.linalg.norm(rel)
         scaled = ranges / sensors.max_range(self.params, underwater)
-        obs = jnp.concatenate([scaled[:sensors.NUM_BEAMS], action,
-                               jnp.stack([bearing / jnp.pi, elevation / (jnp.pi / 2),
-                                          jnp.minimum(dist / DIST_SCALE, 1.0)]),
+        obs = jnp.concatenate([scaled[:sensors.NUM_BEAMS], action, goal_features(position, physics.yaw_of(rot), goal),
                                scaled[sensors.NUM_BEAMS:]])
         return jnp.nan_to_num(obs).astype(jnp.float32)
 

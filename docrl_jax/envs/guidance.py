@@ -1,0 +1,109 @@
+"""Route guidance: where to steer in a tank whose solids are known (a tank file, a procedural level).
+
+`plan` gives one trip's params: `gap`, every grid cell's distance to the nearest solid (walls, floor,
+obstacles), and `field`, the route cost from every free cell (flyability's: 0.55 m from every solid) to
+the cells within the arrival distance of the goal. The cost of a move is its length times 1 + `crowding` x
+how far the cell lies inside `SAFE_GAP` of a solid (0 at SAFE_GAP, 1 at the free cells' edge): with
+`crowding` 0 it is flyability's own `distance_field`, whose shortest routes graze corners at 0.55 m, a few
+centimetres of drift from the fans' 0.5 m collision reading; with the default the route keeps to the
+middle of an opening and rounds corners ~1 m off.
+
+Each step `aim` picks the point to steer at: the farthest of the next `LOOK_AHEAD` cells down the field's
+steepest descent (`flyability.route_path` from the vehicle) that it sees, a line of sight keeping
+`SIGHT_GAP` from every solid at the sampled cells; the goal itself once within `DIRECT_RANGE` or when the
+goal is in sight; off the free cells (a start 0.3 m above the floor, below the lowest free layer; a drift
+out of a thin layer) it rejoins them where route cost + distance is least (`_entry`).
+
+Two steer at the aim: the privileged route-follower (docrl_jax/baselines/route.py, scripted steering),
+and a learned policy with `guided` (its observation's goal floats point at the aim instead of the goal:
+`guide`). A mapless policy pulled straight at its goal stalls where the way round a wall or up through a
+ceiling's opening first leads away from it; guided, it follows the route and keeps its own obstacle
+avoidance from the ranges. The episode still ends at the real goal.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from docrl_jax.envs import flyability
+from docrl_jax.envs.huauv import GOAL_FEATURES, goal_features
+from docrl_jax.policy import Policy
+
+LOOK_AHEAD = 8            # cells down the route the aim may reach (~2-3 m)
+DIRECT_RANGE = 1.0        # m: within this of the goal, fly straight at it
+SAFE_GAP = 1.0            # m: cells nearer a solid than this cost more
+CROWDING = 2.0            # extra cost per metre at the free cells' edge (0.55 m from a solid)
+SIGHT_GAP = 0.8           # m: a line of sight's sampled cells keep this from every solid
+SIGHT_STEP = 0.1          # m between the points a line of sight samples
+SIGHT_SAMPLES = 160       # points sampled toward the goal (16 m: the tank's diagonal)
+REACH_CELLS = 2           # off the free cells: where to rejoin them, within this many cells on each axis
+
+_AROUND = np.stack(np.meshgrid(*[np.arange(-REACH_CELLS, REACH_CELLS + 1)] * 3, indexing="ij"), -1).reshape(-1, 3)
+
+
+def plan(layout, p, goal: jax.Array, crowding: float = CROWDING) -> dict:
+    """The follower's params for one trip to `goal` in `layout` (module doc): {"field", "gap"}."""
+    return plan_cells(flyability.free_cells(layout, p), flyability.cell_gaps(layout), p, goal, crowding)
+
+
+def plan_cells(free: jax.Array, gap: jax.Array, p, goal: jax.Array, crowding: float = CROWDING) -> dict:
+    """`plan` from a layout's free cells and `flyability.cell_gaps` (computed once for many trips in one tank)."""
+    seeds = flyability.goal_seeds(free, goal, p.arrival_distance)
+    if crowding == 0:
+        return {"field": flyability.distance_field(free, seeds), "gap": gap}
+    inside = jnp.clip((SAFE_GAP - gap) / (SAFE_GAP - flyability.clearance(p)), 0.0, 1.0)
+    return {"field": flyability.distance_field(free, seeds, 1.0 + crowding * inside), "gap": gap}
+
+
+def in_sight(params: dict, a: jax.Array, b: jax.Array, samples: int = SIGHT_SAMPLES) -> jax.Array:
+    """bool: every point sampled along a -> b (every `SIGHT_STEP`, up to `samples`) lies in a cell the
+    field reaches, at least `SIGHT_GAP` from every solid (so the segment keeps ~0.58 m or more)."""
+    n = jnp.clip(jnp.ceil(jnp.linalg.norm(b - a) / SIGHT_STEP), 1, samples)
+    points = a + jnp.minimum(jnp.arange(samples + 1, dtype=jnp.float32) / n, 1.0)[:, None] * (b - a)
+    ok = lambda q: jnp.isfinite(flyability.field_at(params["field"], q)) & (  # noqa: E731
+        flyability.field_at(params["gap"], q) >= SIGHT_GAP)
+    return jnp.all(jax.vmap(ok)(points))
+
+
+def _entry(field: jax.Array, position: jax.Array) -> jax.Array:
+    """Off the free cells: the centre of the cell within `REACH_CELLS` on each axis with the least field +
+    distance from `position` (a solid between would need 1.1 m of free-cell clearance: more than the reach)."""
+    idx, _ = flyability.nearest_cell(position)
+    cells = jnp.clip(idx + _AROUND, 0, jnp.asarray(flyability.GRID_SHAPE) - 1)
+    centres = flyability.cell_centres()[cells[..., 0], cells[..., 1], cells[..., 2]]
+    cost = field[cells[:, 0], cells[:, 1], cells[:, 2]] + jnp.linalg.norm(centres - position, axis=-1)
+    return centres[jnp.argmin(cost)]
+
+
+def aim(params: dict, position: jax.Array, goal: jax.Array) -> jax.Array:
+    """The point (3,) to steer at (module doc)."""
+    off_route = ~jnp.isfinite(flyability.field_at(params["field"], position))
+    start = jnp.where(off_route, _entry(params["field"], position), position)
+    path = flyability.route_path(params["field"], start, LOOK_AHEAD + 2)[1:]          # (LOOK_AHEAD + 1, 3)
+    reach = int(np.ceil(LOOK_AHEAD * flyability.GRID_STEP * np.sqrt(3.0) / SIGHT_STEP)) + 2
+    seen = jax.vmap(lambda q: in_sight(params, position, q, reach))(path).at[0].set(True)
+    target = path[jnp.max(jnp.where(seen, jnp.arange(path.shape[0]), 0))]
+    direct = (jnp.linalg.norm(goal - position) < DIRECT_RANGE) | in_sight(params, position, goal)
+    return jnp.where(direct, goal, target)
+
+
+def guide(obs: jax.Array, position: jax.Array, yaw: jax.Array, target: jax.Array) -> jax.Array:
+    """`obs` with its goal floats (`huauv.GOAL_FEATURES`) pointing at `target` from the pose."""
+    return obs.at[GOAL_FEATURES].set(goal_features(position, yaw, target).astype(obs.dtype))
+
+
+def guided(policy: Policy) -> Policy:
+    """`policy` steered by `aim`: each step its observation's goal floats point at the aim of the trip's
+    plan (`plan`) from the pose in `info`. The returned Policy's params are {"plan": one plan per trial,
+    "policy": `policy`'s own params}: a rollout maps "plan" over trials and shares "policy" (PLAN_AXES)."""
+    def act(params, carry, obs, info, key):
+        position, goal = info["position"], info["goal"]
+        obs = guide(obs, position, info["yaw"], aim(params["plan"], position, goal))
+        return policy.act(params["policy"], carry, obs, info, key)
+    return Policy(name=f"{policy.name} (route-guided)", params={"plan": None, "policy": policy.params},
+                  init_carry=policy.init_carry, act=act, source=policy.source)
+
+
+PLAN_AXES = {"plan": 0, "policy": None}   # vmap in_axes of a guided policy's params over trials

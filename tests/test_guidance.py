@@ -1,0 +1,49 @@
+"""Route guidance (docrl_jax/envs/guidance.py): the observation's goal floats point at the route's aim.
+Checked against the env's own observation (guiding at the real goal changes nothing) and in a hand-made
+tank whose straight line from start to goal runs into a wall (tests/test_route_follower.py's): the aim is
+not the goal, lies down the route, is in sight, and the guided observation's bearing turns towards it."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from docrl_jax.envs import flyability, guidance, huauv, tanks
+from docrl_jax.evaluate import rollout
+from tests.test_route_follower import TANK
+
+
+@pytest.fixture(scope="module")
+def trip(tmp_path_factory):
+    path = tmp_path_factory.mktemp("tank") / "wall.yaml"
+    path.write_text(TANK)
+    env = rollout.make_eval_env(0, 100, start_water_fraction=0.0, goal_water_fraction=1.0)
+    layout = jax.tree.map(lambda x: x[None], tanks.load(path, env.params))
+    state = jax.tree.map(lambda x: x[0], rollout.reset_states(env, jax.random.PRNGKey(3)[None], layout))
+    plan = guidance.plan(jax.tree.map(lambda x: x[0], layout), env.params, state.info["goal"])
+    return state, plan
+
+
+def test_guiding_at_the_goal_is_the_envs_observation(trip):
+    state, _ = trip
+    info = state.info
+    again = guidance.guide(state.obs, info["position"], info["yaw"], info["goal"])
+    np.testing.assert_allclose(np.asarray(again), np.asarray(state.obs), atol=1e-6)
+    assert huauv.GOAL_FEATURES.stop - huauv.GOAL_FEATURES.start == 3
+
+
+def test_aim_leads_round_the_wall(trip):
+    state, plan = trip
+    position, goal = state.info["position"], state.info["goal"]
+    assert not bool(guidance.in_sight(plan, position, goal))     # the wall is in the way
+    target = guidance.aim(plan, position, goal)
+    assert float(jnp.linalg.norm(target - goal)) > 1.0             # so the aim is not the goal ...
+    assert float(flyability.field_at(plan["field"], target)) < float(flyability.field_at(plan["field"], position))
+    assert bool(guidance.in_sight(plan, position, target))         # ... but a visible point down the route
+    assert float(target[1]) > float(position[1])                   # towards the wall's open end (y > -1.5)
+    guided = guidance.guide(state.obs, position, state.info["yaw"], target)
+    want = huauv.goal_features(position, state.info["yaw"], target)
+    np.testing.assert_allclose(np.asarray(guided[huauv.GOAL_FEATURES]), np.asarray(want), atol=1e-6)
+    assert not np.allclose(np.asarray(guided[huauv.GOAL_FEATURES]), np.asarray(state.obs[huauv.GOAL_FEATURES]))
+    np.testing.assert_array_equal(np.asarray(guided[:huauv.GOAL_FEATURES.start]),
+                                  np.asarray(state.obs[:huauv.GOAL_FEATURES.start]))   # ranges, action untouched
