@@ -86,9 +86,12 @@ def _assert_same(a, b):
 
 def test_the_run_keeps_the_policy_of_its_best_evaluation():
     _, d, step = _tracking_run()
-    best, final = load_policy(d, which="best"), load_policy(d)
+    best, final = load_policy(d, which="best"), load_policy(d, which="final")
     assert f"env step {step:,}" in best.source and "checkpoint 16000" in best.source
     assert final.source == "final policy of seed index 0: checkpoint 16000"
+    default = load_policy(d)   # the run's policy: its best, since it kept one
+    assert default.which == "best" and default.source == best.source
+    _assert_same(default.params, best.params)
     _, expected, _ = checkpoint.restore(checkpoint.manager(d), step,
                                         abstract_policy=jax.tree.map(lambda x: x[None], best.params))
     _assert_same(jax.tree.map(lambda x: x[0], expected), best.params)
@@ -110,5 +113,6 @@ def test_a_resumed_run_keeps_the_same_best_and_old_checkpoints_have_none():
     old = Path(__file__).resolve().parents[2] / "benchmarks/results/h100/runs/h100_td3_lstm_4096_shaped"
     with pytest.raises(RunDirError, match="holds no best policy.*which='final'"):
         load_policy(old, which="best")
+    assert load_policy(old).which == "final"   # the run's policy where none was kept
     with pytest.raises(RunDirError, match="valid choices are final, best"):
         load_policy(old, which="newest")

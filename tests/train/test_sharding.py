@@ -156,8 +156,8 @@ def _assert_close_rows(a: list[dict], b: list[dict]) -> None:
 
 
 def _policies(run_dir: Path) -> list:
-    """Actor params of each seed, restored onto this process's single device."""
-    return [load_policy(run_dir, i).params for i in range(4)]
+    """Actor params of each seed (the trained actor, not a best pick), restored onto this process's single device."""
+    return [load_policy(run_dir, i, which="final").params for i in range(4)]
 
 
 def _run(args: list[str], env: dict | None = None) -> subprocess.Popen:

@@ -62,7 +62,7 @@ def test_resume_gives_the_same_metrics_as_an_uninterrupted_run():
     assert train_run.run(config, d, resume=True, show_progress=False) == cli.EXIT_OK
     strip = lambda rows: [{k: v for k, v in r.items() if k != "wall_time_s"} for r in rows]
     assert strip(_rows(d)) == strip(_rows(finished_run()))
-    a, b = load_policy(d), load_policy(finished_run())
+    a, b = load_policy(d, which="final"), load_policy(finished_run(), which="final")   # the trained actor itself
     jax.tree.map(lambda x, y: np.testing.assert_array_equal(np.asarray(x), np.asarray(y)), a.params, b.params)
 
 
