@@ -5,8 +5,9 @@ act under jit), each called as a deployment calls it: one observation (batch 1),
     python benchmarks/export_latency.py                                  # the trained td3_lstm test policy
     python benchmarks/export_latency.py --run runs/d --steps 2000 --repeats 7 --cpu 0
 
-The run is exported once (python -m docrl_jax.export, into a temporary directory); then each artefact
-runs in its own process pinned to one core (`taskset -c CPU`) with one thread everywhere
+The run's final policy (seed index 0; the recorded table timed final policies) is exported once
+(python -m docrl_jax.export --which final, into a temporary directory); then each artefact runs in its
+own process pinned to one core (`taskset -c CPU`) with one thread everywhere
 (OMP/OpenBLAS/MKL_NUM_THREADS=1, onnxruntime intra_op_num_threads=1, XLA_FLAGS
 "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"). In it, after 200 warm-up
 steps, `--repeats` runs of `--steps` steps are timed step by step (time.perf_counter_ns around the
@@ -58,7 +59,7 @@ def worker(artefact: str, export_dir: Path, run: str, steps: int, repeats: int) 
         import jax
 
         from docrl_jax.runs import load_policy
-        policy = load_policy(run)
+        policy = load_policy(run, which="final")
         act = jax.jit(policy.act)
 
         def step(o, carry):
@@ -108,7 +109,7 @@ def main(argv=None) -> int:
     from docrl_jax.export.manifest import versions
     rows, load = [], [round(x, 2) for x in os.getloadavg()]   # other work on the machine shows here
     with tempfile.TemporaryDirectory() as tmp:
-        manifest = export_policy(args.run, Path(tmp) / "export")
+        manifest = export_policy(args.run, Path(tmp) / "export", which="final")
         for artefact in ARTEFACTS:
             cmd = ["taskset", "-c", str(args.cpu), sys.executable, str(Path(__file__).resolve()), "--worker", artefact,
                    "--export-dir", str(Path(tmp) / "export"), "--run", args.run, "--steps", str(args.steps),

@@ -4,8 +4,9 @@ numpy, and on a GPU? Two steps, on two machines:
     python benchmarks/export_portability.py prepare DIR     # here: export td3_lstm (cpu,cuda) + reference actions
     python3 benchmarks/export_portability.py check DIR --out RESULTS_DIR    # there: numpy, jax, onnxruntime only
 
-`prepare` exports tests/data/trained/td3_lstm with `--platforms cpu,cuda` into DIR/export and saves
-300 observations and the JAX policy's actions for them (carry fed back) in DIR/reference.npz.
+`prepare` exports tests/data/trained/td3_lstm's final policy (the recorded results are of it) with
+`--which final --platforms cpu,cuda` into DIR/export and saves 300 observations and the JAX policy's
+actions for them (carry fed back) in DIR/reference.npz.
 `check` imports nothing of docrl_jax (it says whether it could): it runs the StableHLO artefact on
 every jax platform there, the ONNX one with onnxruntime and the NumPy one, over the same
 observations, and writes the largest action differences with the versions and devices to
@@ -36,8 +37,8 @@ def prepare(out: Path) -> None:
     from docrl_jax.export import _check_observations, export_policy
     from docrl_jax.runs import load_policy
     run = root / "tests" / "data" / "trained" / "td3_lstm"
-    export_policy(run, out / "export", platforms=("cpu", "cuda"), force=True)
-    policy = load_policy(run)
+    export_policy(run, out / "export", which="final", platforms=("cpu", "cuda"), force=True)
+    policy = load_policy(run, which="final")
     act = jax.jit(policy.act)
     obs, carry, actions = _check_observations(STEPS, seed=5), policy.init_carry(), []
     for o in obs:

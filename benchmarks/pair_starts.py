@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     meta, rows = run_meta(), []
     for run in args.runs:
         env = evaluate.make_eval_env(args.scenario, 500, **flown_env(run_vehicle(run), {}))   # the run's own vehicle
-        policy = load_policy(run)
+        policy = load_policy(run, which="final")
         row = {"run": os.path.basename(os.path.normpath(run))}
         for direction in protocol.DIRECTIONS:
             start, goal = envs.eval_pair(args.scenario, direction)

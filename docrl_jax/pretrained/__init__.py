@@ -113,7 +113,7 @@ def write(run_dir: str | Path, seed_index: int, name: str, folder: str | Path) -
     import numpy as np
 
     from docrl_jax import runs
-    policy = runs.load_policy(run_dir, seed_index=seed_index)
+    policy = runs.load_policy(run_dir, seed_index=seed_index, which="final")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     config_path = folder / f"{name}.yaml"
