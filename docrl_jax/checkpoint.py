@@ -2,10 +2,12 @@
 
     <run_dir>/checkpoints/<env_steps>/
         state/    the whole runner state of every seed (agent, optimisers, replay buffer, envs, keys)
-        policy/   the run's policy: the actor's Polyak average (agent.policy_average_tau; the trained
-                  actor itself when that is 1), stacked over seeds (read by `load_policy`)
+        policy/   the final (current) policy: the actor's Polyak average (agent.policy_average_tau;
+                  the trained actor itself when that is 1), stacked over seeds
+                  (`load_policy(..., which="final")`; `--run` loads it where no best/ is kept)
         best/     with train.track_best_policy: each seed's best evaluated policy so far, stacked
-                  over seeds (docrl_jax.best_policy; `load_policy(..., which="best")`)
+                  over seeds (docrl_jax.train.best_policy): the run's policy, what `load_policy` and
+                  `--run` load by default
         meta/     JSON: env_steps, chunk, wall_time_s, config name, and the best policies' record
 
 Orbax cannot write zero-size arrays (MJX keeps a few), so a tree is stored as its non-empty leaves

@@ -181,9 +181,9 @@ class TrainConfig:
     track_best_policy: bool = documented(True,
         "Keep each seed's best evaluated policy so far (by the paper pairs' weaker "
         "direction with eval_paper_pairs, else random-goal success; ties to the "
-        "later) in every checkpoint's best/ item, beside the final policy; "
-        "load_policy(which='best') and evaluate --which best read it "
-        "(docrl_jax/best_policy.py). Tables report the final policy.")
+        "later) in every checkpoint's best/ item, beside the final policy: "
+        "what load_policy and every --run load by default (--which final "
+        "for the final one; docrl_jax/train/best_policy.py).")
     checkpoint_every: int = documented(200_000,
         "Env steps between Orbax checkpoints (plus one at the end and on Ctrl-C).")
     checkpoint_every_minutes: float = documented(10.0,
