@@ -2,16 +2,20 @@
 privileged route-follower (docrl_jax/baselines/route.py: it knows the tank and flies down the distance field
 to the goal) flies the very trials of the robustness benchmark's `tanks` and `structured` tests (same trip
 keys, same starts, goals, plants; nominal evaluation env, 500 steps) and counts arrivals per tank and
-family, both ways, with what ended each failure.
+family, both ways, with what ended each failure. With --policy a learned policy flies the same trials
+instead, steered by the same route (`docrl_jax/envs/guidance.py`, `guided`), or as it is with --unguided.
 
     python benchmarks/route_follower.py --out benchmarks/results/cpu/route_follower
     python benchmarks/route_follower.py --trials 35 --layouts 10     # a quick look
+    python benchmarks/route_follower.py --trials 350 --layouts 1000 --policy RUN_DIR:0 --policy sac_mlp_generalist \
+        --out OUT          # benchmarks/results/h100x4/route_guided (a GPU; --unguided: the same, mapless)
 
 Writes tanks.csv and structured.csv (a row per tank or layout family and direction), failures.csv (every
-trial that did not arrive: where it ended, the route left, the nearest solid) and summary.md.
+trial that did not arrive: where it ended, the route left, the nearest solid) and summary.md (OUT/<label>/
+per --policy).
 
-The Policy API shares its params over the trials of a rollout (`rollout.make_rollout`), and this follower's
-params are a field per trial; so the trials run in this file's scan, the rollout's own (the same env.step,
+The Policy API shares its params over the trials of a rollout (`rollout.make_rollout`), and a route plan
+is a field per trial; so the trials run in this file's scan, the rollout's own (the same env.step,
 a finished trial frozen, the metrics of `rollout.trial_metrics`), mapped over (params, state) pairs.
 """
 
