@@ -11,8 +11,8 @@ The best is kept on the host (a few kilobytes per seed) and written into every c
 a resume restores both, so an interrupted run picks the same best as an uninterrupted one.
 
 The best is chosen on the very evaluation episodes it is scored on, so its training-time score is
-optimistic: re-evaluate it (`python -m docrl_jax.evaluate --run RUN --which best`, other trial seeds)
-before quoting it. Tables report the final policy.
+optimistic: the evaluator (`python -m docrl_jax.evaluate --run RUN`, which loads it by default, where kept)
+flies it on other episodes, and those are the figures to quote.
 """
 
 from __future__ import annotations
