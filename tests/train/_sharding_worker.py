@@ -51,6 +51,8 @@ def single(out: Path) -> None:
     from docrl_jax.train.programs import compile_programs
     from docrl_jax.config import ConfigError
     assert len(jax.devices()) == 4, jax.devices()
+    summary = {"shardy_before": bool(getattr(jax.config, "jax_use_shardy_partitioner", False))}
+    _build_a_multi_device_program(jax.devices())
 
     def go(name, devices, **kw):
         return train_run.run(tiny_config(devices=devices), out / name, show_progress=False, **kw)
@@ -61,7 +63,6 @@ def single(out: Path) -> None:
         assert go(name, devices, resume=True) == cli.EXIT_OK
         assert go(other, other_devices, resume=True) == cli.EXIT_OK
 
-    summary = {}
     # Where the 4-device programs put the state (already compiled: cheap).
     config = tiny_config(devices=4)
     placement = sharding.seed_placement(config.train)
@@ -81,6 +82,19 @@ def single(out: Path) -> None:
         summary["three_devices_error"] = str(e)
     summary["eight_devices_status"] = train_run.run(tiny_config(devices=8), out / "eight", show_progress=False)
     (out / "summary.json").write_text(json.dumps(summary))
+
+
+def _build_a_multi_device_program(devices) -> None:
+    """Builds (does not compile) a program over `devices` as the trainer builds its own, which switches
+    JAX to the GSPMD partitioner (sharding.use_gspmd_partitioner), before any run. The program store's
+    names, which also key the process's memo of compiled programs, include that flag: switched only
+    inside the first run's compile, it would make every later run of the same programs in this
+    process (the resumes) miss the memo and compile them again (a third of these workers' time)."""
+    from jax.sharding import PartitionSpec
+
+    from docrl_jax import sharding
+    from docrl_jax.train import programs
+    programs._over_seeds(lambda x: x, tuple(devices), (PartitionSpec(sharding.SEED_AXIS),))
 
 
 def _gloo_on_loopback() -> None:
@@ -121,6 +135,7 @@ def multi(out: Path) -> int:
     from docrl_jax.train import run as train_run
     sharding.initialize_distributed()
     assert jax.process_count() == 2 and len(jax.devices()) == 4 and len(jax.local_devices()) == 2
+    _build_a_multi_device_program(jax.devices())
     run_dir = out / "multi"
     first = train_run.run(tiny_config(), run_dir, show_progress=False, stop_after_chunks=1)
     second = cli.main(["--run-dir", str(run_dir), "--resume", "--no-progress"])
