@@ -92,8 +92,6 @@ def validate(c: Config) -> Config:
                 "temperature must be > 0 and uniform_mix in [0, 1]")
     elif lv.route_reward:
         bad("levels.route_reward", lv.route_reward, "needs a level pool: levels.sampler uniform or learnability")
-    elif lv.guide:
-        bad("levels.guide", lv.guide, "needs a level pool: levels.sampler uniform or learnability")
     if t.eval_alongside and (why := alongside_blocker(c)):
         bad("train.eval_alongside", True, f"not possible here: {why}; set it false (or auto)")
     if a.algo == "ddpg":

@@ -222,12 +222,6 @@ class LevelsConfig:
         "straight-line progress_reward_scale. The route knows the way round a wall or through a ceiling's "
         "opening, where the straight line pulls into the wall. The policy never sees the field. 0 = off; "
         "needs a level pool (levels.sampler uniform or learnability).")
-    guide: bool = documented(False,
-        "Ours: route guidance in training. Each training step the observation's goal floats point at the aim "
-        "down the level's route field to the goal's region (docrl_jax/envs/guidance.py: the farthest visible "
-        "point a few cells down the route, the goal once in sight or inside its region) instead of straight at "
-        "the goal, so the policy learns to follow a route; fly it guided (benchmarks/route_follower.py "
-        "--policy). The in-training evaluation flies it unguided. Needs a level pool.")
 
 
 @dataclass(frozen=True)

@@ -46,9 +46,7 @@ class LevelPool:
     cdf: jax.Array         # (capacity,) cumulative sampling weights, fixed between refreshes
     flyable: jax.Array     # () share of the last refresh's candidates that were flyable
     fields: Any = None     # (capacity, 2, X, Y, Z) float16 route lengths to the water and the air region
-    #                        (flyability.check_with_fields), kept for the route reward and route guidance,
-    #                        then (keep_gaps) a third channel: each cell's distance to the nearest solid
-    #                        (flyability.cell_gaps); None without them
+    #                        (flyability.check_with_fields), kept for the route reward; None without it
 
 
 class Curriculum(NamedTuple):
@@ -58,7 +56,6 @@ class Curriculum(NamedTuple):
     take: Callable      # (pool, indices) -> Layout with a leading (n,) axis
     record: Callable    # (pool, indices, done (n,), success (n,)) -> pool
     to_region: Callable  # (pool, indices (n,), water (n,) bool, positions (n, 3)) -> (n,) route length (m)
-    plans: Callable      # (pool, indices (n,), water (n,) bool) -> guidance plans {"field", "gap"} (n, X, Y, Z)
 
 
 def learnability(pool: LevelPool) -> jax.Array:
@@ -69,12 +66,11 @@ def learnability(pool: LevelPool) -> jax.Array:
 
 def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature: float = 0.5,
                     uniform_mix: float = 0.3, check: Callable | None = None,
-                    keep_fields: bool = False, keep_gaps: bool = False) -> Curriculum:
+                    keep_fields: bool = False) -> Curriculum:
     """The pool's pure functions for `env` (an HUAUVEnv of procedural tanks; its `draw_layout` and params).
     `sampler`: 'uniform' or 'learnability' (module doc). `check(level, params) -> flyability.Route`
     decides which candidates may enter (default: flyability's, without the straight-line distances). `keep_fields`: the pool keeps each level's distance fields
-    (`flyability.check_with_fields`, then the check) for `to_region`; `keep_gaps` also each level's
-    `flyability.cell_gaps`, for `plans` (route guidance, docrl_jax/envs/guidance.py)."""
+    (`flyability.check_with_fields`, then the check) for `to_region`."""
     if sampler not in SAMPLERS:
         raise ValueError(f"sampler={sampler!r}: valid samplers are {', '.join(SAMPLERS)}")
     if not 1 <= refresh <= capacity:
@@ -92,8 +88,6 @@ def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature:
         if keep_fields:
             def one(lv):
                 route, fields = flyability.check_with_fields(lv, p, straight=False)
-                if keep_gaps:
-                    fields = jnp.concatenate([fields, flyability.cell_gaps(lv)[None]])
                 return route, fields.astype(jnp.float16)
             route, fields = jax.lax.map(one, levels, batch_size=CHECK_BATCH)
             levels = (levels, fields)
@@ -165,13 +159,8 @@ def make_curriculum(env, sampler: str, capacity: int, refresh: int, temperature:
         value = pool.fields[indices, medium, cell[:, 0], cell[:, 1], cell[:, 2]].astype(jnp.float32)
         return jnp.where(inside, value, jnp.inf)
 
-    def plans(pool: LevelPool, indices, water):
-        """Each env's `guidance.plan` of its level: the route field to its goal's region (water or air) and
-        the gaps, gathered per env (float16)."""
-        return {"field": pool.fields[indices, jnp.where(water, 0, 1)], "gap": pool.fields[indices, 2]}
-
     return Curriculum(init=init, refresh=refresh_pool, sample=sample, take=take, record=record,
-                      to_region=to_region, plans=plans)
+                      to_region=to_region)
 
 
 def _expand(flag, x):

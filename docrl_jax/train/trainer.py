@@ -35,7 +35,6 @@ from flax import struct
 import docrl_jax.envs as envs
 from docrl_jax.algorithms import Agent, AgentState, make_agent
 from docrl_jax.config import Config, env_kwargs
-from docrl_jax.envs import flyability, guidance, physics
 from docrl_jax.envs.curriculum import make_curriculum
 from docrl_jax.networks import expand_flag
 from docrl_jax.replay import BufferState, make_sequence_buffer
@@ -106,8 +105,7 @@ def make_trainer(config: Config) -> Trainer:
     if config.levels.sampler != "env":   # a level pool (docrl_jax/envs/curriculum.py)
         lv = config.levels
         pool = make_curriculum(env, lv.sampler, lv.capacity, lv.refresh, lv.temperature, lv.uniform_mix,
-                               keep_fields=lv.route_reward > 0 or lv.guide, keep_gaps=lv.guide)
-    guide = pool is not None and config.levels.guide
+                               keep_fields=lv.route_reward > 0)
     lanes = evaluation.alongside   # None, or the evaluation's env lanes after the n training envs
     train_rows = (lambda x: x[:n]) if lanes else (lambda x: x)  # noqa: E731
 
@@ -155,10 +153,6 @@ def make_trainer(config: Config) -> Trainer:
             else:
                 carry_in = zero
             obs = train_rows(rs.env.obs)
-            if guide:   # levels.guide: the goal floats point down the level's route (docrl_jax/envs/guidance.py)
-                sim = rs.env.sim
-                obs = _guided(pool, rs.levels, rs.level, obs, sim.data.qpos[:n, :3],
-                              jax.vmap(lambda q: physics.yaw_of(physics.quat_to_mat(q)))(sim.data.qpos[:n, 3:7]), sim.goal[:n])
             carry, noise, action = agent.explore(rs.agent, carry_in, rs.noise, obs, rs.start, k_act, progress, hp)
             random_phase = rs.env_steps < t.start_steps
             uniform = jax.random.uniform(k_rand, action.shape, minval=-1.0, maxval=1.0)
@@ -183,10 +177,7 @@ def make_trainer(config: Config) -> Trainer:
             reward, done, info = jax.tree.map(train_rows, (env_state.reward, env_state.done, env_state.info))
             if pool and config.levels.route_reward:
                 reward = reward + _route_progress(pool, rs, info["position"], config.levels.route_reward, n)
-            next_obs = info["final_obs"]
-            if guide:
-                next_obs = _guided(pool, rs.levels, rs.level, next_obs, info["position"], info["yaw"], info["goal"])
-            step = _buffer_step(obs, action, reward, next_obs, info["terminated"],
+            step = _buffer_step(obs, action, reward, info["final_obs"], info["terminated"],
                                 info["truncated"], rs.start, carry_in)
             buf = buffer.add(rs.buffer, step)
 
@@ -258,18 +249,6 @@ def _route_progress(pool, rs: RunnerState, position, scale: float, n: int):
     before = pool.to_region(rs.levels, rs.level, water, start)
     after = pool.to_region(rs.levels, rs.level, water, position)
     return jnp.where(jnp.isfinite(before) & jnp.isfinite(after), scale * (before - after), 0.0)
-
-
-def _guided(pool, levels, level, obs, position, yaw, goal):
-    """levels.guide: each env's observation with its goal floats pointing at `guidance.aim` down its
-    level's route field to the goal's region; at the goal itself inside the region (the field is 0 there
-    and leads nowhere) or where the goal is in sight (aim's own rule)."""
-    plans = pool.plans(levels, level, goal[:, 2] < 0.0)
-
-    def one(plan, o, pos, y, g):
-        in_region = flyability.field_at(plan["field"], pos) <= 0.0
-        return guidance.guide(o, pos, y, jnp.where(in_region, g, guidance.aim(plan, pos, g)))
-    return jax.vmap(one)(plans, obs, position, yaw, goal)
 
 
 def _buffer_step(obs, action, reward, next_obs, terminated, truncated, start, carry) -> dict:
