@@ -287,7 +287,9 @@ def main() -> None:
     ap.add_argument("--crowding", type=float, default=guidance.CROWDING,
                     help="route cost near solids (guidance.plan; 0: flyability's shortest routes)")
     ap.add_argument("--look-ahead", type=int, default=guidance.LOOK_AHEAD, help="guidance.LOOK_AHEAD: cells down the route the aim may reach")
-    ap.add_argument("--sight-gap", type=float, default=guidance.SIGHT_GAP, help="guidance.SIGHT_GAP: m a line of sight keeps from every solid")
+    ap.add_argument("--sight-gap", type=float, default=None,
+                    help="m a line of sight keeps from every solid (default: guidance.SIGHT_GAP for the follower, "
+                         "guidance.GUIDED_SIGHT_GAP for a --policy)")
     ap.add_argument("--policy", action="append", default=[], metavar="SPEC",
                     help="fly a learned policy instead of the follower, steered by the route (guidance.guided): a "
                          "shipped policy's name or RUN_DIR[:SEED_INDEX]; repeat for several (out/<label>/ each)")
@@ -295,7 +297,9 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="folder for the CSVs and summary.md")
     args = ap.parse_args()
     # The aim reads these when it is traced (below): a sweep of the guidance's own settings.
-    guidance.LOOK_AHEAD, guidance.SIGHT_GAP = args.look_ahead, args.sight_gap
+    guidance.LOOK_AHEAD = args.look_ahead
+    if args.sight_gap is not None:
+        guidance.SIGHT_GAP = guidance.GUIDED_SIGHT_GAP = args.sight_gap
     from docrl_jax.envs import structures
     params = rollout.make_eval_env(0, args.max_steps).params
     names, stack = tank_sets.load(args.tank, params)
