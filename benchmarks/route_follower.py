@@ -3,7 +3,7 @@ privileged route-follower (docrl_jax/baselines/route.py: it knows the tank and f
 to the goal) flies the very trials of the robustness benchmark's `tanks` and `structured` tests (same trip
 keys, same starts, goals, plants; nominal evaluation env, 500 steps) and counts arrivals per tank and
 family, both ways, with what ended each failure. With --policy a learned policy flies the same trials
-instead, steered by the same route (`docrl_jax/envs/guidance.py`, `guided`), or as it is with --unguided.
+instead, steered by the same route (`docrl_jax/envs/guidance.py`, `route.guided`), or as it is with --unguided.
 
     python benchmarks/route_follower.py --out benchmarks/results/cpu/route_follower
     python benchmarks/route_follower.py --trials 35 --layouts 10     # a quick look
@@ -101,7 +101,7 @@ def make_runner(env, policy, max_steps: int, shared: bool = False):
                 "end_obstacle_gap": jnp.min(obstacle_gaps), "end_obstacle": jnp.argmin(obstacle_gaps),
                 "end_boundary_gap": geometry.signed_distance(layouts.boundary(layout, walls), end)}
 
-    _RUNNERS[cache_key] = jax.jit(jax.vmap(episode, in_axes=(guidance.PLAN_AXES if shared else 0, 0)))
+    _RUNNERS[cache_key] = jax.jit(jax.vmap(episode, in_axes=(route.PLAN_AXES if shared else 0, 0)))
     return _RUNNERS[cache_key]
 
 
@@ -109,11 +109,11 @@ _STEERED: dict = {}
 
 
 def steered(pilot, guide: bool):
-    """`pilot` as the runner flies it, params {"plan", "policy"}: route-guided (`guidance.guided`) or as it
+    """`pilot` as the runner flies it, params {"plan", "policy"}: route-guided (`route.guided`) or as it
     is (the plan only diagnoses). One wrapper per act function, so one compiled runner per architecture."""
     key = (id(pilot.act), guide)
     if key not in _STEERED:
-        _STEERED[key] = guidance.guided(pilot) if guide else Policy(
+        _STEERED[key] = route.guided(pilot) if guide else Policy(
             pilot.name, None, pilot.init_carry, lambda p, c, o, i, k: pilot.act(p["policy"], c, o, i, k))
     return _STEERED[key]
 
@@ -122,7 +122,7 @@ def fly(test: str, stack, which, direction: str, seed: int, max_steps: int, crow
         pilot=None, vehicle=None, guide: bool = True) -> dict:
     """The trips of a robustness layout test (`test`: tanks or structured) in one direction, trip i in
     layout which[i] of `stack`, flown by the route-follower, or by `pilot` (a learned Policy; a
-    steered by each trip's plan with `guide`, `guidance.guided`) in its `vehicle` (`run_dirs.run_vehicle`):
+    steered by each trip's plan with `guide`, `route.guided`) in its `vehicle` (`run_dirs.run_vehicle`):
     `rollout.trial_metrics` plus the diagnosis."""
     count, vehicle = len(which), vehicle or {}
     host = rollout.make_eval_env(0, max_steps, **vehicle)
@@ -291,7 +291,7 @@ def main() -> None:
                     help="m a line of sight keeps from every solid (default: guidance.SIGHT_GAP for the follower, "
                          "guidance.GUIDED_SIGHT_GAP for a --policy)")
     ap.add_argument("--policy", action="append", default=[], metavar="SPEC",
-                    help="fly a learned policy instead of the follower, steered by the route (guidance.guided): a "
+                    help="fly a learned policy instead of the follower, steered by the route (route.guided): a "
                          "shipped policy's name or RUN_DIR[:SEED_INDEX]; repeat for several (out/<label>/ each)")
     ap.add_argument("--unguided", action="store_true", help="with --policy: fly it as it is (mapless), same trials")
     ap.add_argument("--out", default=None, help="folder for the CSVs and summary.md")

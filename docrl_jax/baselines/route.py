@@ -8,6 +8,7 @@ set's trials (`python benchmarks/route_follower.py [--crowding 0]`, benchmarks/r
 the default arrives in all 900, flyability's shortest routes (`--crowding 0`) collide in 37 (all in air,
 where the LIDAR fan sees 270 degrees). It reads the pose and the goal from `info` and the grids from its
 params, one plan per trial: run it with a rollout that maps params over trials (benchmarks/route_follower.py).
+`guided` steers a learned policy at the same aim instead (its goal floats point there).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import jax.numpy as jnp
 
 from docrl_jax.baselines.scripted import straight_line
 from docrl_jax.envs import flyability
+from docrl_jax.envs import guidance
 from docrl_jax.envs.guidance import aim
 from docrl_jax.policy import Policy
 
@@ -51,3 +53,18 @@ def route_follower(params=None) -> Policy:
     """The route-follower with `params` (`guidance.plan` or `straight_plan` of one trip, or a stack of them with a
     leading trial axis for a rollout that maps params over trials); None: to be given per trial."""
     return Policy(name="route_follower", params=params, init_carry=_init_carry, act=_act)
+
+
+def guided(policy: Policy) -> Policy:
+    """`policy` steered by `aim` (lines of sight keeping GUIDED_SIGHT_GAP): each step its observation's goal
+    floats point at the aim of the trip's plan (`plan`) from the pose in `info`. The returned Policy's params are {"plan": one plan per trial,
+    "policy": `policy`'s own params}: a rollout maps "plan" over trials and shares "policy" (PLAN_AXES)."""
+    def act(params, carry, obs, info, key):
+        position, goal = info["position"], info["goal"]
+        obs = guidance.guide(obs, position, info["yaw"], aim(params["plan"], position, goal, guidance.GUIDED_SIGHT_GAP))
+        return policy.act(params["policy"], carry, obs, info, key)
+    return Policy(name=f"{policy.name} (route-guided)", params={"plan": None, "policy": policy.params},
+                  init_carry=policy.init_carry, act=act, source=policy.source)
+
+
+PLAN_AXES = {"plan": 0, "policy": None}   # vmap in_axes of a guided policy's params over trials

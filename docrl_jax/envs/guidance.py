@@ -14,9 +14,9 @@ steepest descent (`flyability.route_path` from the vehicle) that it sees, a line
 goal is in sight; off the free cells (a start 0.3 m above the floor, below the lowest free layer; a drift
 out of a thin layer) it rejoins them where route cost + distance is least (`_entry`).
 
-Two steer at the aim: the privileged route-follower (docrl_jax/baselines/route.py, scripted steering),
-and a learned policy with `guided` (its observation's goal floats point at the aim instead of the goal:
-`guide`). A mapless policy pulled straight at its goal stalls where the way round a wall or up through a
+Two steer at the aim (docrl_jax/baselines/route.py): the privileged route-follower (scripted steering),
+and a learned policy with `route.guided` (its observation's goal floats point at the aim instead of the
+goal: `guide`). A mapless policy pulled straight at its goal stalls where the way round a wall or up through a
 ceiling's opening first leads away from it; guided, it follows the route and keeps its own obstacle
 avoidance from the ranges. The episode still ends at the real goal.
 """
@@ -29,7 +29,6 @@ import numpy as np
 
 from docrl_jax.envs import flyability
 from docrl_jax.envs.huauv import GOAL_FEATURES, goal_features
-from docrl_jax.policy import Policy
 
 LOOK_AHEAD = 8            # cells down the route the aim may reach (~2-3 m)
 DIRECT_RANGE = 1.0        # m: within this of the goal, fly straight at it
@@ -97,18 +96,3 @@ def aim(params: dict, position: jax.Array, goal: jax.Array, sight_gap=None) -> j
 def guide(obs: jax.Array, position: jax.Array, yaw: jax.Array, target: jax.Array) -> jax.Array:
     """`obs` with its goal floats (`huauv.GOAL_FEATURES`) pointing at `target` from the pose."""
     return obs.at[GOAL_FEATURES].set(goal_features(position, yaw, target).astype(obs.dtype))
-
-
-def guided(policy: Policy) -> Policy:
-    """`policy` steered by `aim` (lines of sight keeping GUIDED_SIGHT_GAP): each step its observation's goal
-    floats point at the aim of the trip's plan (`plan`) from the pose in `info`. The returned Policy's params are {"plan": one plan per trial,
-    "policy": `policy`'s own params}: a rollout maps "plan" over trials and shares "policy" (PLAN_AXES)."""
-    def act(params, carry, obs, info, key):
-        position, goal = info["position"], info["goal"]
-        obs = guide(obs, position, info["yaw"], aim(params["plan"], position, goal, GUIDED_SIGHT_GAP))
-        return policy.act(params["policy"], carry, obs, info, key)
-    return Policy(name=f"{policy.name} (route-guided)", params={"plan": None, "policy": policy.params},
-                  init_carry=policy.init_carry, act=act, source=policy.source)
-
-
-PLAN_AXES = {"plan": 0, "policy": None}   # vmap in_axes of a guided policy's params over trials

@@ -156,7 +156,7 @@ def test_load_policy_errors(tmp_path):
         if f.is_file():
             f.write_bytes(b"not a checkpoint")
     with pytest.raises(RunDirError, match="checkpoint 16000 .* is corrupt"):
-        load_policy(corrupt)
+        load_policy(corrupt, which="final")   # the item corrupted above
 
 
 def test_command_line_refuses_bad_input_before_compiling(tmp_path):
