@@ -48,6 +48,74 @@ def _env_fns(scenario: int, overrides: tuple):
 ROLLOUT_STEPS = 80
 
 
+# ------------------------------------------------------------------ how two workers share the suite
+# CI runs `pytest -n 2 --dist loadfile` on 2 cores, and the suite is CPU-bound: compiling dominates.
+# With loadfile a work unit is a test file; here it is also one of the units below. A unit of several
+# files holds tests that reuse the programs one of them compiles (memoised in the process: in one
+# worker they compile once, in two twice); a single test as a unit is a long one that need not wait
+# for the rest of its file. The units go out heaviest first, then every other file in collection
+# order, so that short files fill in at the end and both workers finish together (xdist's own order,
+# by number of tests, put the 2-test file that trains for minutes last). The order is by the CPU
+# seconds each unit took in a whole run of the suite here; a renamed file or test only loses its
+# place, never a test. (xdist's own grouping, --dist loadgroup with xdist_group marks, does not group
+# under pytest 9.2: it sets a node id attribute that pytest no longer reads.)
+EASY_TRAINER = ("tests/train/test_train.py", "tests/train/test_run_safety.py", "tests/train/test_sweep.py",
+                "tests/train/test_program_store.py", "tests/train/test_best_policy.py",
+                "tests/train/test_train_video.py",
+                "tests/train/test_learning.py::test_td3_lstm_learns_the_easy_task")  # _trainer_common's programs
+HEAVIEST_FIRST = (
+    EASY_TRAINER,
+    ("tests/train/test_learning.py",),   # its other test: the procedural tanks' programs, then 160k steps
+    ("tests/train/test_sharding.py",),
+    ("tests/envs/test_env_contract.py",),
+    ("tests/envs/test_adapters.py",),
+    ("tests/train/test_eval_alongside.py",),
+    ("tests/evaluate/test_robustness.py",),
+    ("tests/evaluate/test_evaluate.py",),
+    ("tests/export/test_export_parity.py",),
+    ("tests/envs/test_physics.py",),
+    ("tests/envs/test_procedural.py",),
+    ("tests/evaluate/test_video.py",),
+    ("tests/envs/test_randomization.py",),
+    ("tests/envs/test_structures.py",),
+    ("tests/test_learner_recipe.py",),
+    ("tests/train/test_programs.py",),
+    ("tests/envs/test_tanks.py",),
+    ("tests/evaluate/test_tank_trials.py",),
+)
+
+
+def _unit(nodeid: str) -> tuple[int, str]:
+    """(place in HEAVIEST_FIRST, unit name) of a test: the unit of the longest member naming it; an
+    unlisted test's unit is its file, after every listed one."""
+    best = (len(HEAVIEST_FIRST), nodeid.split("::")[0], 0)
+    for place, members in enumerate(HEAVIEST_FIRST):
+        for member in members:
+            if (nodeid == member or nodeid.startswith((member + "::", member + "["))) and len(member) > best[2]:
+                best = (place, members[0], len(member))
+    return best[:2]
+
+
+def pytest_collection_modifyitems(items):
+    """Heaviest units first (stable: a unit keeps its tests' order); the workers send this order."""
+    items.sort(key=lambda item: _unit(item.nodeid)[0])
+
+
+@pytest.hookimpl(optionalhook=True)   # a pytest-xdist hook
+def pytest_xdist_make_scheduler(config, log):
+    """--dist loadfile over the units above, handed out in collection order."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class Units(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _unit(nodeid)[1]
+
+    config.option.loadscopereorder = False
+    return Units(config, log)
+
+
 @pytest.fixture(scope="session")
 def same_picture():
     """same_picture(a, b): asserts two renders of the same scene are the same picture. Not bit for
