@@ -9,7 +9,8 @@ A `Policy` is data plus pure functions, so a whole batch of evaluation trials ru
 `obs` is the env's 26-float observation, `info` the env's info dict of the same step (a classical
 baseline such as BBA reads pose and ranges from it, as the original read odometry; learned policies
 ignore it), `key` a PRNG key (deterministic policies ignore it). `action` is in [-1, 1]^3. The
-carry is reset to `init_carry()` at the start of every trial.
+carry is reset to `init_carry()` at the start of every trial. A policy that plans over each trial's tank
+sets `trial_params` (below): the rollout then gives every trial its own params.
 """
 
 from __future__ import annotations
@@ -35,6 +36,12 @@ class Policy:
     act: Callable[[Any, Any, Any, dict, Any], tuple[Any, Any]]
     source: str = ""   # where the params came from (load_policy: final or best, which checkpoint)
     which: str = ""    # load_policy: the checkpoint's policy it loaded, "final" or "best"; "" for any other policy
+    # A policy that knows each trial's tank (docrl_jax.baselines.route: the route-follower, a route-guided policy):
+    # trial_params(params, env, initial states) -> its params for each trial, mapped over the trials of a
+    # rollout with vmap in_axes `trial_axes` (e.g. a route plan per trial, the network's params shared). None:
+    # `params` serve every trial.
+    trial_params: Callable[[Any, Any, Any], Any] | None = None
+    trial_axes: Any = None
 
 
 moved_names(__name__, {"RunDirError": "docrl_jax.errors"})

@@ -1,6 +1,7 @@
 """The privileged route-follower (docrl_jax/baselines/route.py) in a hand-made tank: a wall across the
 straight line from start to goal, open beyond its end. Following the tank's route field it flies round the
-wall's end and arrives; given a straight-line field instead (the tank as if empty) it flies into the wall."""
+wall's end and arrives; given a straight-line field instead (the tank as if empty) it flies into the wall. The
+evaluator's rollout, planning each trial from its initial state, flies the very same flight."""
 
 import jax
 import numpy as np
@@ -39,6 +40,10 @@ def flights(tmp_path_factory):
     for name, params in (("route", guidance.plan(one, env.params, goal)), ("straight", route.straight_plan(goal))):
         out[name] = rollout.run_from_states(env, route.route_follower(params), state, jax.random.PRNGKey(0)[None],
                                             MAX_STEPS)
+    # Without params the rollout plans each trial itself from its initial state (Policy.trial_params:
+    # guidance.trial_plans, the env's solids), as `evaluate --guide` and the robustness benchmark do.
+    out["planned_by_rollout"] = rollout.run_from_states(env, route.route_follower(), state,
+                                                        jax.random.PRNGKey(0)[None], MAX_STEPS)
     return state, out
 
 
@@ -60,3 +65,10 @@ def test_straight_line_field_hits_the_wall(flights):
     assert not trials["success"][0]
     assert trials["collision"][0]
     assert abs(trials["positions"][0, trials["steps"][0], 0]) < 0.8    # it ended at the wall
+
+
+def test_the_rollout_plans_each_trial_as_the_layout_plan(flights):
+    """The plan from the env's solids (`flyability.tank_cells`) is the one from the tank's layout grids."""
+    mine, reference = flights[1]["planned_by_rollout"], flights[1]["route"]
+    assert mine["success"][0]
+    np.testing.assert_array_equal(mine["positions"], reference["positions"])

@@ -49,22 +49,40 @@ def _act(params, carry, obs, info, key):
     return carry + 1, action
 
 
+def _plans(params, env, states):
+    return guidance.trial_plans(env, states)
+
+
 def route_follower(params=None) -> Policy:
     """The route-follower with `params` (`guidance.plan` or `straight_plan` of one trip, or a stack of them with a
-    leading trial axis for a rollout that maps params over trials); None: to be given per trial."""
-    return Policy(name="route_follower", params=params, init_carry=_init_carry, act=_act)
+    leading trial axis for a rollout that maps params over trials); None: the evaluator's rollouts plan each
+    trial from its initial state (`guidance.trial_plans`)."""
+    return Policy(name="route_follower", params=params, init_carry=_init_carry, act=_act,
+                  trial_params=None if params is not None else _plans, trial_axes=0)
+
+
+PLAN_AXES = {"plan": 0, "policy": None}   # vmap in_axes of a guided policy's params over trials
+
+
+def _guided_plans(params, env, states):
+    return {**params, "plan": guidance.trial_plans(env, states)}
+
+
+_GUIDED: dict = {}   # id(policy.act) -> (guided act, policy): policies of one act share one guided act
 
 
 def guided(policy: Policy) -> Policy:
     """`policy` steered by `aim` (lines of sight keeping GUIDED_SIGHT_GAP): each step its observation's goal
-    floats point at the aim of the trip's plan (`plan`) from the pose in `info`. The returned Policy's params are {"plan": one plan per trial,
-    "policy": `policy`'s own params}: a rollout maps "plan" over trials and shares "policy" (PLAN_AXES)."""
-    def act(params, carry, obs, info, key):
-        position, goal = info["position"], info["goal"]
-        obs = guidance.guide(obs, position, info["yaw"], aim(params["plan"], position, goal, guidance.GUIDED_SIGHT_GAP))
-        return policy.act(params["policy"], carry, obs, info, key)
+    floats point at the aim of the trip's plan (`plan`) from the pose in `info`. The returned Policy's params
+    are {"plan": one plan per trial, "policy": `policy`'s own params}: a rollout maps "plan" over trials and
+    shares "policy" (PLAN_AXES); the evaluator's rollouts plan each trial from its initial state. Policies of
+    one act function (`rollout.policy_for` shares them per architecture) get one guided act: one compile."""
+    if id(policy.act) not in _GUIDED:
+        def act(params, carry, obs, info, key):
+            position, goal = info["position"], info["goal"]
+            target = aim(params["plan"], position, goal, guidance.GUIDED_SIGHT_GAP)
+            return policy.act(params["policy"], carry, guidance.guide(obs, position, info["yaw"], target), info, key)
+        _GUIDED[id(policy.act)] = (act, policy)    # keeping the policy keeps its act's id unique
     return Policy(name=f"{policy.name} (route-guided)", params={"plan": None, "policy": policy.params},
-                  init_carry=policy.init_carry, act=act, source=policy.source)
-
-
-PLAN_AXES = {"plan": 0, "policy": None}   # vmap in_axes of a guided policy's params over trials
+                  init_carry=policy.init_carry, act=_GUIDED[id(policy.act)][0], source=policy.source,
+                  which=policy.which, trial_params=_guided_plans, trial_axes=PLAN_AXES)

@@ -83,19 +83,24 @@ def _wall_gap(centres: jax.Array) -> jax.Array:
     return geometry.TANK_HALF_WIDTH - jnp.maximum(jnp.abs(centres[..., 0]), jnp.abs(centres[..., 1]))
 
 
+def _gaps_to(solids: geometry.Solids) -> jax.Array:
+    """Signed distance (X, Y, Z) from every cell centre to the nearest of `solids`."""
+    points = _centres().reshape(-1, 3)
+    return jax.vmap(lambda c: geometry.signed_distance(solids, c))(points).reshape(GRID_SHAPE)
+
+
 def _solid_gaps(layout: layouts.Layout):
     """Signed distances (X, Y, Z) from every cell centre to the nearest obstacle and to the floor."""
-    points = _centres().reshape(-1, 3)
-    def gap(solids):
-        return jax.vmap(lambda c: geometry.signed_distance(solids, c))(points).reshape(GRID_SHAPE)
-    return gap(layouts.obstacles(layout)), gap(layouts.boundary(layout, _NO_WALLS))
+    return _gaps_to(layouts.obstacles(layout)), _gaps_to(layouts.boundary(layout, _NO_WALLS))
+
+
+def _free_of(gap: jax.Array, z_min, p: EnvParams) -> jax.Array:
+    z = _centres()[..., 2]
+    return (z >= z_min) & (z <= p.bounds[1]) & (gap >= clearance(p))
 
 
 def _free(layout: layouts.Layout, p: EnvParams, obstacle_gap, floor_gap) -> jax.Array:
-    z = _centres()[..., 2]
-    in_bounds = (z >= layout.z_min) & (z <= p.bounds[1])
-    nearest = jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), _wall_gap(_centres()))
-    return in_bounds & (nearest >= clearance(p))
+    return _free_of(jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), _wall_gap(_centres())), layout.z_min, p)
 
 
 def _region(layout: layouts.Layout, p: EnvParams, medium, free, obstacle_gap) -> jax.Array:
@@ -120,6 +125,14 @@ def free_cells(layout: layouts.Layout, p: EnvParams) -> jax.Array:
     """bool (X, Y, Z): cells whose centre lies within the episode's vertical bounds (layout.z_min ..
     p.bounds[1]) and at least `clearance(p)` from the walls, the floor and every obstacle."""
     return _free(layout, p, *_solid_gaps(layout))
+
+
+def tank_cells(obstacles: geometry.Solids, boundary: geometry.Solids, z_min, p: EnvParams):
+    """(free cells, cell gaps) of any tank from its solids, as the env's hull check sees them
+    (`HUAUVEnv.solids`: a fixed scenario's MJCF geoms, or a procedural layout's): `free_cells` and
+    `cell_gaps` of a layout are these with the layout's obstacles, floor and walls."""
+    gap = jnp.minimum(jnp.minimum(_gaps_to(obstacles), _gaps_to(boundary)), _wall_gap(_centres()))
+    return _free_of(gap, z_min, p), gap
 
 
 def region_cells(layout: layouts.Layout, p: EnvParams, medium) -> jax.Array:

@@ -59,6 +59,24 @@ def plan_cells(free: jax.Array, gap: jax.Array, p, goal: jax.Array, crowding: fl
     return {"field": flyability.distance_field(free, seeds, 1.0 + crowding * inside), "gap": gap}
 
 
+_TRIAL_PLANS: dict = {}   # (id(env), crowding, batch) -> (jit of the plans, env): compiled once per env
+
+
+def trial_plans(env, states, crowding: float = CROWDING, batch: int = 25) -> dict:
+    """A plan per trial (leading axis) from the trials' initial `states` in `env`: the tank each state holds
+    (its layout, or the fixed scenario's geoms: `HUAUVEnv.solids`) and its goal; `batch` trials at a time
+    (each holds a few grids of the tank)."""
+    cache_key = (id(env), float(crowding), int(batch))
+    if cache_key not in _TRIAL_PLANS:
+        def one(args):
+            layout, goal = args
+            free, gap = flyability.tank_cells(*env.solids(layout), env.params)
+            return plan_cells(free, gap, env.params, goal, crowding)
+        plans = jax.jit(lambda layout, goals: jax.lax.map(one, (layout, goals), batch_size=batch))
+        _TRIAL_PLANS[cache_key] = (plans, env)
+    return _TRIAL_PLANS[cache_key][0](states.sim.layout, states.info["goal"])
+
+
 def in_sight(params: dict, a: jax.Array, b: jax.Array, samples: int = SIGHT_SAMPLES, gap=None) -> jax.Array:
     """bool: every point sampled along a -> b (every `SIGHT_STEP`, up to `samples`) lies in a cell the
     field reaches, at least `gap` (default SIGHT_GAP) from every solid (with 0.8 the segment keeps ~0.58 m

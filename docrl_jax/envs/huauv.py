@@ -153,7 +153,7 @@ class HUAUVEnv:
         return self.params.control_dt
 
     # ------------------------------------------------------------------ the episode's tank
-    def _tank(self, layout):
+    def solids(self, layout=None):
         """(obstacles, for the start/goal sampler and the hull check; the walls and the floor, for the
         hull check; lower z bound)."""
         if not self.procedural:
@@ -189,7 +189,7 @@ class HUAUVEnv:
                       layout=None):
         """A free point for a start or goal: in air or water, clear of obstacles and walls."""
         p = self.params
-        obstacles, _, z_min = self._tank(layout)
+        obstacles, _, z_min = self.solids(layout)
         k_med, k_xy, k_z = jax.random.split(key, 3)
         water = jax.random.uniform(k_med) < water_fraction
         if self.procedural:  # the layout's region of the medium (layouts.default_regions, or narrower)
@@ -322,7 +322,7 @@ class HUAUVEnv:
         true_ranges, ranges = self._sense(data, sim.layout, plant, k_noise, position, rot, underwater)
 
         # 5. Events and reward (collision on the noise-free geometry).
-        obstacles, boundary, lo = self._tank(sim.layout)
+        obstacles, boundary, lo = self.solids(sim.layout)
         hi = p.bounds[1]
         # The hull's clearance to the obstacles serves the contact check and the training-only margin.
         to_obstacles = geometry.hull_clearance(obstacles, position, rot)

@@ -55,6 +55,21 @@ def add_which_argument(p: argparse.ArgumentParser) -> None:
                         f"it) or best (each seed's best evaluated one); default the run's policy: {RUN_POLICY_RULE}")
 
 
+def add_guide_argument(p: argparse.ArgumentParser) -> None:
+    """--guide, as every command that flies a policy takes it (evaluate, robustness, render)."""
+    p.add_argument("--guide", action="store_true",
+                   help="steer the policy down each trial's route through its tank, which the command knows "
+                        "(docrl_jax/envs/guidance.py: its goal floats point at the route's aim): map-aided, not "
+                        "mapless; labels say 'guided'. Not for bba, which reads its goal from the env")
+
+
+def check_guide(args: argparse.Namespace) -> None:
+    """--guide steers a learned policy through its observation; the BBA baseline does not read one."""
+    if getattr(args, "guide", False) and (args.policy or "").lower() == "bba":
+        raise UsageError("--guide steers a learned policy through its observation's goal floats; bba reads its goal "
+                         "from the env: drop --guide, or give --run RUN_DIR or a shipped --policy")
+
+
 def parse_scenarios(text: str) -> list[int]:
     try:
         vals = [int(t) for t in text.split(",") if t.strip() != ""]
@@ -151,6 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "mean and spread over seeds. With several run directories each gives these seeds, "
                         "numbered 0, 1, ... in the order given (results.json maps them back)")
     add_which_argument(p)
+    add_guide_argument(p)
     p.add_argument("--label", help="method name in the tables (default: the --policy name, 'BBA' for bba, or the run dir's name)")
     p.add_argument("--trials", type=int, default=100, help="trials per scenario and direction (default 100)")
     p.add_argument("--scenarios", default=None, help="comma-separated scenarios (default 1,2,3)")
@@ -186,6 +202,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
                          f"(valid policies: {', '.join(pretrained.POLICY_NAMES)}), and/or --curves RUN_DIR ...")
     if args.policy is not None:
         args.policy = pretrained.check_name(args.policy.lower())
+    check_guide(args)
     if args.trials <= 0:
         raise UsageError(f"--trials {args.trials}: must be a positive integer")
     if args.max_steps <= 0:

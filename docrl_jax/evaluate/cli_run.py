@@ -32,14 +32,15 @@ def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple
     """(policy, label) for --policy (a shipped policy or a baseline) or for one seed of the run directory
     `run`. Several run directories are labelled by their config's name, one by its folder's name."""
     if args.policy is not None:   # one BBA per env: the renderer's and benchmark's too
-        policy, label = rollout.policy_for(env, None, 0, None, args.bba_depth_phase, name=args.policy)
+        policy, label = rollout.policy_for(env, None, 0, None, args.bba_depth_phase, name=args.policy, guide=args.guide)
         if args.policy in pretrained.PRETRAINED:
             print(f"{args.policy}: {policy.source}", flush=True)
         return policy, args.label or label
     policy = runs.load_policy(run, seed_index=seed_index, which=args.which)
     print(f"{Path(run).name}: {policy.source}", flush=True)
     name = config_name(run) if len(args.run) > 1 else Path(run).resolve().name
-    return policy, args.label or runs.policy_label(name, policy.which)
+    policy, label = rollout.steered(policy, runs.policy_label(name, policy.which), args.guide)
+    return policy, args.label or label
 
 
 def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
@@ -66,7 +67,7 @@ def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
     vehicles = {seed_index: run_vehicle(run, args.policy) for seed_index, (run, _) in zip(seed_indices, sources)}
     rows, trial_rows, tank_rows = [], [], []
     meta = {"command": " ".join(["python -m docrl_jax.evaluate", *(argv if argv is not None else sys.argv[1:])]),
-            "run": args.run, "which": {} if args.run else None, "policy": args.policy, "seed_indices": seed_indices,
+            "run": args.run, "which": {} if args.run else None, "policy": args.policy, "guide": args.guide, "seed_indices": seed_indices,
             "policy_sources": {},
             "seed_runs": {str(i): {"run": run, "seed_index": s} for i, (run, s) in zip(seed_indices, sources)}
             if args.run is not None else {}, "trials": args.trials,

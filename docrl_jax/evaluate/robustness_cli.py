@@ -79,6 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed-index", default="all",
                    help="seed(s) of each --run, comma-separated, or 'all' (default: every seed the run trained)")
     cli.add_which_argument(p)
+    cli.add_guide_argument(p)
     p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
     p.add_argument("--tests", default=",".join(TESTS), help=f"comma-separated: {', '.join(TESTS)} (default all)")
     p.add_argument("--perturbations", default="all",
@@ -121,6 +122,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
             pretrained.check_name(args.policy)
         except pretrained.UnknownPolicy as e:
             raise UsageError(str(e)) from None
+    cli.check_guide(args)
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
     trials = args.trials if args.trials is not None else (QUICK["trials"] if args.quick else 100)
@@ -135,7 +137,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     cfg = {"tests": tests, "scenarios": scenarios, "directions": cli.parse_directions(args.directions),
            "trials": trials, "layouts": num_layouts, "seed_indices": cli.parse_seed_indices(args.seed_index),
            "perturbations": parse_perturbations(args.perturbations), "max_steps": args.max_steps, "seed": args.seed,
-           "which": args.which, "bba_depth_phase": args.bba_depth_phase}
+           "which": args.which, "bba_depth_phase": args.bba_depth_phase, "guide": args.guide}
     cfg["env"] = cli.parse_env_overrides(args.env, _scenarios_run(cfg))
     for key in MEDIA_KEYS:
         if key in cfg["env"]:
@@ -215,6 +217,8 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
                          "method, in order (each --run, then --policy), or none")
     for m, label in zip(methods, labels):
         m.label = label
+    for m in methods if args.guide and not labels else ():
+        m.label = m.label and rollout.guided_label(m.label)
     for m in methods:
         if m.label is None:
             raise UsageError(f"--run {' '.join(m.runs)}: the run directories hold different configs "
@@ -294,7 +298,7 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
                                                                 for i, (r, s) in zip(m.seed_indices, m.sources)}}
                     for m in cfg["methods"]],
         "which": {m.label: group_policy(m.runs, args.which) for m in cfg["methods"] if m.runs},
-        "bba_depth_phase": args.bba_depth_phase if args.policy else None,
+        "bba_depth_phase": args.bba_depth_phase if args.policy else None, "guide": args.guide,
         "tests": cfg["tests"], "scenarios": cfg["scenarios"], "directions": cfg["directions"],
         "trials": cfg["trials"], "layouts": cfg["layouts"], "tank": cfg["tank"], "tank_names": cfg.get("tank_names"),
         "max_steps": args.max_steps, "seed": args.seed,

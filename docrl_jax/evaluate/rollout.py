@@ -73,7 +73,8 @@ RENDER_RECORDS = ("qpos", "goal", "ranges", "vertical_ranges", "underwater", "di
 
 
 def _cache_key(env, policy, max_steps: int, render: bool = False, from_states: bool = False) -> tuple:
-    return id(env), id(policy.act), id(policy.init_carry), int(max_steps), bool(render), bool(from_states)
+    per_trial = None if policy.trial_params is None else repr(policy.trial_axes)   # the params' vmap axes
+    return id(env), id(policy.act), id(policy.init_carry), int(max_steps), bool(render), bool(from_states), per_trial
 
 
 def split_trial_key(key):
@@ -86,8 +87,8 @@ def split_trial_key(key):
 def make_rollout(env, policy, max_steps: int, render: bool = False, from_states: bool = False):
     """jit(vmap(scan)) over trials: (params, keys (N,2), positions (N,3), yaws (N,), goal (3,)) -> records.
 
-    Cached per (env, policy.act, max_steps, render, from_states), so calling again with other params or
-    trials reuses the compiled function (a new N retraces once). `render=True` also records
+    Cached per (env, policy.act, max_steps, render, from_states, the per-trial params' axes), so calling
+    again with other params or trials reuses the compiled function (a new N retraces once). `render=True` also records
     `RENDER_RECORDS` (N, T+1, ...) for the renderer (docrl_jax.evaluate.video) and takes one goal per
     trial (N, 3) (random starts and goals): the same trials, the same computation, a separate program
     so that the evaluator's own carries nothing more.
@@ -96,6 +97,9 @@ def make_rollout(env, policy, max_steps: int, render: bool = False, from_states:
     leading trial axis (`reset_states`, `start_states`) and each key is the trial's policy key: the
     trials start from given states (a layout, a plant, a start drawn by `env.reset`) and run the same
     scan. The states must have this env's structure (its latency queues, procedural or not).
+
+    A policy with `trial_params` (docrl_jax.policy) takes its params with a leading trial axis where its
+    `trial_axes` say; `run_trials` and `run_from_states` make them from the trials' initial states.
     """
     cache_key = _cache_key(env, policy, max_steps, render, from_states)
     if cache_key in _ROLLOUTS:
@@ -139,10 +143,11 @@ def make_rollout(env, policy, max_steps: int, render: bool = False, from_states:
         k_reset, k_policy = split_trial_key(key)
         return episode(params, k_policy, env.reset_to(k_reset, position, yaw, goal))
 
+    axes = None if policy.trial_params is None else policy.trial_axes   # params shared, or each trial's own
     if from_states:
-        fn = jax.jit(jax.vmap(episode, in_axes=(None, 0, 0)))
+        fn = jax.jit(jax.vmap(episode, in_axes=(axes, 0, 0)))
     else:
-        fn = jax.jit(jax.vmap(one_trial, in_axes=(None, 0, 0, 0, 0 if render else None)))
+        fn = jax.jit(jax.vmap(one_trial, in_axes=(axes, 0, 0, 0, 0 if render else None)))
     _ROLLOUTS[cache_key] = (fn, env, policy)  # keep env/policy alive so the ids stay unique
     return fn
 
@@ -177,10 +182,11 @@ def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 
     positions, yaws = trial_starts(k_start, start, num_trials, yaw, spec)
     keys = jax.random.split(k_trials, num_trials)
     goal = jax.numpy.asarray(goal, jax.numpy.float32)
-    if plants_of is not None:
+    if _from_start_states(policy, plants_of):
         k_reset, k_policy = jax.vmap(split_trial_key, out_axes=1)(keys)
         goals = jax.numpy.broadcast_to(goal, (num_trials, 3))
-        states = start_states(env, k_reset, positions, yaws, goals, plants_for(plants_of, k_reset))
+        plants = None if plants_of is None else plants_for(plants_of, k_reset)
+        states = start_states(env, k_reset, positions, yaws, goals, plants)
         return _from_states(env, policy, states, k_policy, max_steps, render, positions, yaws)
     fn = make_rollout(env, policy, max_steps, render)
     if render:
@@ -188,6 +194,12 @@ def run_trials(env, policy, start, goal, key, num_trials: int, max_steps: int = 
     out = jax.device_get(fn(policy.params, keys, positions, yaws, goal))
     out = {k: np.asarray(v) for k, v in out.items()}
     return trial_metrics(out, env.control_dt, np.asarray(positions), np.asarray(yaws))
+
+
+def _from_start_states(policy, plants_of) -> bool:
+    """Whether `run_trials` starts its trials from states made first (`start_states`) rather than inside
+    the rollout: for given plants, and for a policy whose params are made from the trials' states."""
+    return plants_of is not None or policy.trial_params is not None
 
 
 def _check_trials(env, num_trials: int, max_steps: int, what: str) -> None:
@@ -211,7 +223,8 @@ def run_from_states(env, policy, states, keys, max_steps: int = 500, render: boo
 def _from_states(env, policy, states, keys, max_steps, render, start_positions, start_yaws):
     import jax
     fn = make_rollout(env, policy, max_steps, render, from_states=True)
-    out = jax.device_get(fn(policy.params, keys, states))
+    params = policy.params if policy.trial_params is None else policy.trial_params(policy.params, env, states)
+    out = jax.device_get(fn(params, keys, states))
     out = {k: np.asarray(v) for k, v in out.items()}
     return trial_metrics(out, env.control_dt, np.asarray(start_positions), np.asarray(start_yaws))
 
@@ -304,7 +317,7 @@ def evaluate_policy(policy, method: str = "policy", scenarios: Sequence[int] = S
         for direction in directions:
             start, goal = envs.eval_pair(scenario, direction)
             key = trial_key(seed, scenario, direction)
-            fresh = _cache_key(env, policy, max_steps) not in _ROLLOUTS
+            fresh = _cache_key(env, policy, max_steps, from_states=_from_start_states(policy, None)) not in _ROLLOUTS
             t0 = time.time()
             trials = run_trials(env, policy, start, goal, key, num_trials, max_steps, NOMINAL_YAW[direction])
             elapsed = round(time.time() - t0, 2)
@@ -362,19 +375,33 @@ def _shared(policy, settings) -> Any:
     return policy if first is policy else replace(policy, init_carry=first.init_carry, act=first.act)
 
 
+def steered(policy, label: str, guide: bool):
+    """(policy, label), route-guided with `guide` (docrl_jax.baselines.route.guided: every trial plans its route
+    through its tank) and labelled so (`guided_label`)."""
+    if not guide:
+        return policy, label
+    from docrl_jax.baselines import route
+    return route.guided(policy), guided_label(label)
+
+
+def guided_label(label: str) -> str:
+    """A method's label when --guide steers it."""
+    return f"{label} guided"
+
+
 def policy_for(env, run: str | None = None, seed_index: int = 0, which: str | None = None,
-               bba_depth_phase: str = "after", name: str | None = None):
+               bba_depth_phase: str = "after", name: str | None = None, guide: bool = False):
     """(policy, method label): the policy shipped as `name` (docrl_jax.pretrained), one seed of a run
     directory (`which` as runs.load_policy's: None = the run's policy; the label marks a best one), or the
-    BBA baseline (neither)."""
+    BBA baseline (neither); a learned one route-guided with `guide` (`steered`)."""
     from docrl_jax import pretrained
     if name in pretrained.PRETRAINED:
-        return pretrained.load(name), name
+        return steered(pretrained.load(name), name, guide)
     if run is None:
         from docrl_jax.baselines import bba
         return (_shared(bba.make_bba(env.params, depth_phase=bba_depth_phase), ("bba", id(env), bba_depth_phase)),
                 bba.label(bba_depth_phase))
     from docrl_jax import runs
     policy = runs.load_policy(run, seed_index=seed_index, which=which)
-    return (_shared(policy, ("run", runs.read_config(run).agent)),
-            runs.policy_label(Path(run).resolve().name, policy.which))
+    return steered(_shared(policy, ("run", runs.read_config(run).agent)),
+                   runs.policy_label(Path(run).resolve().name, policy.which), guide)

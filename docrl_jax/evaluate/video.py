@@ -39,6 +39,7 @@ import numpy as np
 
 from docrl_jax import pretrained
 from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
+from docrl_jax.evaluate.cli import UsageError, check_guide
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
 from docrl_jax.evaluate.rollout import policy_for
@@ -55,10 +56,6 @@ RANDOM_SALT = 7     # random trials' keys: fold_in(fold_in(PRNGKey(seed), scenar
 DEFAULT_POLICY = "sac_mlp_generalist"
 DEFAULT_OUT = "flight.gif"
 GIF_EVERY = 2       # a GIF's default --every
-
-
-class UsageError(ValueError):
-    """A bad command line; the message names the valid choices."""
 
 
 def imageio_for(suffix: str):
@@ -91,11 +88,7 @@ def trials_to_render(env, policy, scenario: int, direction: str, num_trials: int
     base = jax.random.fold_in(jax.random.PRNGKey(seed), scenario)
     keys = jax.numpy.stack([jax.random.fold_in(base, RANDOM_SALT + i) for i in range(num_trials)])
     k_reset, k_trial = jax.vmap(jax.random.split, out_axes=1)(keys)
-    starts = rollout.reset_states(env, k_reset)
-    positions, yaws, goals = (np.asarray(starts.info[k]) for k in ("position", "yaw", "goal"))
-    fn = rollout.make_rollout(env, policy, max_steps, render=True)
-    out = jax.device_get(fn(policy.params, k_trial, positions, yaws, goals))
-    return rollout.trial_metrics({k: np.asarray(v) for k, v in out.items()}, env.control_dt, positions, yaws)
+    return rollout.run_from_states(env, policy, rollout.reset_states(env, k_reset), k_trial, max_steps, render=True)
 
 
 def outcome_line(trials: dict[str, np.ndarray], i: int, dt: float) -> str:
@@ -189,7 +182,7 @@ def parse_direction(text: str) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.envs.rendering import CAMERAS
-    from docrl_jax.evaluate.cli import OneLineParser, add_which_argument
+    from docrl_jax.evaluate.cli import OneLineParser, add_guide_argument, add_which_argument
     p = OneLineParser(prog="python -m docrl_jax.render", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = p.add_mutually_exclusive_group()
@@ -199,6 +192,7 @@ def build_parser() -> argparse.ArgumentParser:
                           f"{DEFAULT_POLICY}, shipped in the package)")
     p.add_argument("--seed-index", type=int, default=0, help="which seed of --run (default 0)")
     add_which_argument(p)
+    add_guide_argument(p)
     p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
     p.add_argument("--scenario", type=int, default=None, help="1, 2 or 3 (default 2, the training scenario)")
     p.add_argument("--tank", metavar="PATH|DIR|NAME",
@@ -239,6 +233,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     from docrl_jax.evaluate.run_dirs import check_run_dir, run_vehicle
     if args.run is None:
         args.policy = pretrained.check_name((args.policy or DEFAULT_POLICY).lower())
+    check_guide(args)
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
     if args.tank is not None and args.scenario is not None:
@@ -283,10 +278,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
             imageio_for(suffix)
         except ImportError as e:
             raise UsageError(f"--out {args.out}: {e}, or write a .gif") from None
-    try:
-        env = parse_env_overrides(args.env, [scenario])
-    except ValueError as e:   # the evaluator's UsageError
-        raise UsageError(str(e)) from None
+    env = parse_env_overrides(args.env, [scenario])
     env = rollout.flown_env(run_vehicle(args.run, args.policy), env)
     cfg = {"direction": direction, "env": env, "out": out, "scenario": scenario}
     if args.tank is not None:
@@ -362,7 +354,8 @@ def _render(args, cfg: dict) -> int:
     with contextlib.ExitStack() as contexts:
         renderers = {i: contexts.enter_context(Renderer(m, env.params, args.width, args.height, args.camera,
                                                         fan=not args.no_fan)) for i, m in models.items()}
-        policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase, name=args.policy)
+        policy, label = policy_for(env, args.run, args.seed_index, args.which, args.bba_depth_phase, name=args.policy,
+                                   guide=args.guide)
         if getattr(policy, "source", ""):
             print(f"{label}: {policy.source}", flush=True)
         if args.tank is not None:
