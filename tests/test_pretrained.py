@@ -18,7 +18,7 @@ from docrl_jax.export import cli as export_cli
 
 
 def test_every_name_is_a_policy_of_its_config():
-    assert set(pretrained.PRETRAINED) == {"td3_lstm", "sac_lstm", "sac_mlp", "sac_mlp_generalist"}
+    assert set(pretrained.PRETRAINED) == {"td3_lstm", "sac_lstm", "sac_mlp", "sac_mlp_generalist", "sac_mlp_tanks"}
     assert pretrained.POLICY_NAMES == ("bba", *pretrained.PRETRAINED)
     for name in pretrained.PRETRAINED:
         policy = pretrained.load(name)

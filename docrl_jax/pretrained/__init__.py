@@ -27,6 +27,8 @@ PRETRAINED = {
     "sac_mlp": "SAC, MLP actor: Table I's Sto., seed 0",
     "sac_mlp_generalist": "SAC, MLP actor, trained on procedural tanks under a randomised plant: the generalist "
                           "(docs/ROBUSTNESS.md), seed 10",
+    "sac_mlp_tanks": "SAC, MLP actor, trained on procedural tanks of which half hold structures a person builds: "
+                     "fly it with --guide in a tank you know (docs/LEVELS.md), seed 0",
 }
 BASELINES = ("bba",)
 POLICY_NAMES = (*BASELINES, *PRETRAINED)
