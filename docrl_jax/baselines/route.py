@@ -29,7 +29,7 @@ def straight_plan(goal: jax.Array) -> dict:
     """Params of the control case: the straight-line distance to `goal` from every cell and no solid
     anywhere, as if the tank were empty (the follower then flies straight at the goal)."""
     field = jnp.linalg.norm(flyability.cell_centres() - goal, axis=-1)
-    return {"field": field, "gap": jnp.full(field.shape, jnp.inf, jnp.float32)}
+    return {"field": field, "gap": jnp.full(field.shape, jnp.inf, jnp.float32), "arrival": jnp.float32(0.0)}   # every line of sight is clear
 
 
 def _init_carry():

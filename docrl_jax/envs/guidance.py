@@ -1,8 +1,8 @@
 """Route guidance: where to steer in a tank whose solids are known (a tank file, a procedural level).
 
 `plan` gives one trip's params: `gap`, every grid cell's distance to the nearest solid (walls, floor,
-obstacles), and `field`, the route cost from every free cell (flyability's: 0.55 m from every solid) to
-the cells within the arrival distance of the goal. The cost of a move is its length times 1 + `crowding` x
+obstacles), `arrival`, the env's arrival distance, and `field`, the route cost from every free cell
+(flyability's: 0.55 m from every solid) to the cells within the arrival distance of the goal. The cost of a move is its length times 1 + `crowding` x
 how far the cell lies inside `SAFE_GAP` of a solid (0 at SAFE_GAP, 1 at the free cells' edge): with
 `crowding` 0 it is flyability's own `distance_field`, whose shortest routes graze corners at 0.55 m, a few
 centimetres of drift from the fans' 0.5 m collision reading; with the default the route keeps to the
@@ -11,7 +11,7 @@ middle of an opening and rounds corners ~1 m off.
 Each step `aim` picks the point to steer at: the farthest of the next `LOOK_AHEAD` cells down the field's
 steepest descent (`flyability.route_path` from the vehicle) that it sees, a line of sight keeping
 `SIGHT_GAP` from every solid at the sampled cells; the goal itself once within `DIRECT_RANGE` or when the
-goal is in sight; off the free cells (a start 0.3 m above the floor, below the lowest free layer; a drift
+goal's arrival sphere is in sight; off the free cells (a start 0.3 m above the floor, below the lowest free layer; a drift
 out of a thin layer) it rejoins them where route cost + distance is least (`_entry`).
 
 Two steer at the aim (docrl_jax/baselines/route.py): the privileged route-follower (scripted steering),
@@ -53,10 +53,11 @@ def plan(layout, p, goal: jax.Array, crowding: float = CROWDING) -> dict:
 def plan_cells(free: jax.Array, gap: jax.Array, p, goal: jax.Array, crowding: float = CROWDING) -> dict:
     """`plan` from a layout's free cells and `flyability.cell_gaps` (computed once for many trips in one tank)."""
     seeds = flyability.goal_seeds(free, goal, p.arrival_distance)
+    arrival = jnp.float32(p.arrival_distance)
     if crowding == 0:
-        return {"field": flyability.distance_field(free, seeds), "gap": gap}
+        return {"field": flyability.distance_field(free, seeds), "gap": gap, "arrival": arrival}
     inside = jnp.clip((SAFE_GAP - gap) / (SAFE_GAP - flyability.clearance(p)), 0.0, 1.0)
-    return {"field": flyability.distance_field(free, seeds, 1.0 + crowding * inside), "gap": gap}
+    return {"field": flyability.distance_field(free, seeds, 1.0 + crowding * inside), "gap": gap, "arrival": arrival}
 
 
 _TRIAL_PLANS: dict = {}   # (id(env), crowding, batch) -> (jit of the plans, env): compiled once per env
@@ -107,7 +108,13 @@ def aim(params: dict, position: jax.Array, goal: jax.Array, sight_gap=None) -> j
     reach = int(np.ceil(LOOK_AHEAD * flyability.GRID_STEP * np.sqrt(3.0) / SIGHT_STEP)) + 2
     seen = jax.vmap(lambda q: in_sight(params, position, q, reach, sight_gap))(path).at[0].set(True)
     target = path[jnp.max(jnp.where(seen, jnp.arange(path.shape[0]), 0))]
-    direct = (jnp.linalg.norm(goal - position) < DIRECT_RANGE) | in_sight(params, position, goal, gap=sight_gap)
+    # The goal is in sight when the line to its arrival sphere is (less a cell: the samples read their nearest
+    # cell's gap, up to half a cell low): a goal nearer a solid than the sight gap (the paper's A-W goals lie
+    # 0.3 m above the floor) is flown at straight, as a mapless policy flies it, once its sphere can be reached.
+    distance = jnp.linalg.norm(goal - position)
+    short = jnp.minimum(params["arrival"] + flyability.GRID_STEP, distance)
+    sphere = goal + (position - goal) * short / jnp.maximum(distance, 1e-6)
+    direct = (distance < DIRECT_RANGE) | in_sight(params, position, sphere, gap=sight_gap)
     return jnp.where(direct, goal, target)
 
 
