@@ -51,7 +51,7 @@ def test_an_unknown_name_is_one_line_naming_the_valid_ones():
     with pytest.raises(pretrained.UnknownPolicy) as e:
         pretrained.check_name("ppo")
     assert str(e.value) == ("--policy 'ppo': unknown policy; valid choices: bba, td3_lstm, sac_lstm, sac_mlp, "
-                            "sac_mlp_generalist (or --run RUN_DIR for a trained agent)")
+                            "sac_mlp_generalist, sac_mlp_tanks (or --run RUN_DIR for a trained agent)")
 
 
 def test_render_by_default_draws_a_shipped_policy_succeeding(tmp_path, monkeypatch, capsys):

@@ -10,7 +10,7 @@ from docrl_jax import pretrained
 from docrl_jax.evaluate import cli, cli_run, run_dirs, video
 from docrl_jax.export import cli as export_cli
 
-VALID = "valid choices: bba, td3_lstm, sac_lstm, sac_mlp, sac_mlp_generalist"
+VALID = "valid choices: bba, td3_lstm, sac_lstm, sac_mlp, sac_mlp_generalist, sac_mlp_tanks"
 
 
 @pytest.fixture
