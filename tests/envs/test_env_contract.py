@@ -79,7 +79,7 @@ def test_training_starts_keep_goal_clearance_and_reach_the_paper_w_a_start(clear
 
 def test_reset_state_layout(env_fns):
     env, reset_to, _ = env_fns(1, wind=False)
-    s = env.reset(jax.random.PRNGKey(3))
+    s = jax.jit(env.reset)(jax.random.PRNGKey(3))   # compiled: cheaper than MJX op by op
     assert s.obs.shape == (26,) and s.reward.shape == () and s.done.shape == ()
     for k, shape in {"ranges": (20,), "position": (3,), "goal": (3,), "yaw": (), "underwater": (),
                      "arrived": (), "terminated": (), "truncated": (), "step": ()}.items():
@@ -126,15 +126,16 @@ def test_same_key_same_trajectory_and_different_keys_differ(env_fns):
     assert not np.allclose(np.asarray(obs1), np.asarray(obs3))
 
 
-def test_substep_unroll_is_speed_only():
-    """The GPU default unrolls the physics substeps two at a time, the CPU's one: same dynamics."""
+def test_substep_unroll_is_speed_only(env_fns):
+    """The GPU default unrolls the physics substeps two at a time, the CPU's one: same dynamics.
+    (Scenario 2's default env on this CPU is the unroll-1 env: its rollout is test_same_key_...'s.)"""
     start, goal = jnp.array([0.0, 0.0, 2.0]), jnp.array([3.0, 0.0, 1.0])
     acts = jax.random.uniform(jax.random.PRNGKey(3), (4, 3), minval=-1, maxval=1)
     outs = []
-    for unroll in (1, 2):
-        env = envs.make(2, substep_unroll=unroll)
-        run = jax.jit(lambda s, a: jax.lax.scan(lambda s, a: (env.step(s, a), None), s, a)[0])
-        final = run(env.reset_to(jax.random.PRNGKey(5), start, 0.3, goal), acts)
+    for unroll, overrides in ((1, {}), (2, {"substep_unroll": 2})):
+        env, reset_to, rollout = env_fns(2, **overrides)
+        assert env._unroll == unroll
+        final, _ = rollout(reset_to(jax.random.PRNGKey(5), start, 0.3, goal), acts)
         outs.append((np.asarray(final.obs), np.asarray(final.info["position"])))
     np.testing.assert_allclose(outs[0][0], outs[1][0], rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(outs[0][1], outs[1][1], rtol=1e-5, atol=1e-6)
@@ -185,11 +186,13 @@ def test_auto_reset_runs_each_episode_as_the_env_itself_until_it_ends():
     # Random turns and speeds while diving: each episode ends out of bounds (or on an obstacle) in time.
     acts = jax.random.uniform(jax.random.PRNGKey(4), (100, 3), minval=-1, maxval=1).at[:, 1].set(-1.0)
     start, goal = jnp.array([0.0, 0.0, 2.5]), jnp.array([3.6, -2.4, -1.0])
-    assert set(wrapped.reset_to(jax.random.PRNGKey(5), start, 0.3, goal).info) == set(
-        wrapped.reset(jax.random.PRNGKey(5)).info)   # reset_to in the wrapper's own layout
+    # reset_to in the wrapper's own layout (traced, not run: only the keys are compared)
+    assert set(jax.eval_shape(wrapped.reset_to, jax.random.PRNGKey(5), start, 0.3, goal).info) == set(
+        jax.eval_shape(wrapped.reset, jax.random.PRNGKey(5)).info)
+    reset = jax.jit(plain.reset)   # compiled once for its three uses, not run op by op
     # Two episodes: a random reset and the paper's A-W start.
-    first = jax.tree.map(lambda *x: jnp.stack(x), plain.reset(jax.random.PRNGKey(6)),
-                         plain.reset_to(jax.random.PRNGKey(5), start, 0.3, goal))
+    first = jax.tree.map(lambda *x: jnp.stack(x), reset(jax.random.PRNGKey(6)),
+                         jax.jit(plain.reset_to)(jax.random.PRNGKey(5), start, 0.3, goal))
 
     def run(env, state):  # (time, episode) stacked states
         return jax.lax.scan(lambda s, a: (jax.vmap(env.step, (0, None))(s, a),) * 2, state, acts)[1]
@@ -208,7 +211,7 @@ def test_auto_reset_runs_each_episode_as_the_env_itself_until_it_ends():
         np.testing.assert_allclose(g.sim.wind[:end], r.sim.wind[:end], atol=1e-6)
         if r.done.any():   # then a fresh episode from the ended one's reset key
             ended += 1
-            fresh = plain.reset(envs.wrappers.reset_key(jax.tree.map(lambda x: x[end], r)))
+            fresh = reset(envs.wrappers.reset_key(jax.tree.map(lambda x: x[end], r)))
             np.testing.assert_allclose(g.obs[end], np.asarray(fresh.obs), atol=1e-6)
     assert ended == 2
 
