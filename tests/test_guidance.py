@@ -61,3 +61,22 @@ def test_a_goal_near_the_floor_in_open_water_is_flown_at_straight():
     plan = guidance.plan_cells(free, gap, env.params, goal)
     assert float(flyability.field_at(gap, goal)) < guidance.GUIDED_SIGHT_GAP        # the goal itself is not in sight
     np.testing.assert_array_equal(guidance.aim(plan, start, goal, guidance.GUIDED_SIGHT_GAP), goal)
+
+
+def test_a_steep_aim_under_water_comes_near_and_no_other():
+    """With a steep reach (a guided policy's), an aim above steeper than STEEP_DEG from under water lies that
+    far along its own direction; a shallow one, or one from the air, is the goal itself (an empty tank: the
+    goal is always in sight)."""
+    from docrl_jax.baselines import route
+    reach = guidance.GUIDED_STEEP_REACH
+
+    def aim(position, goal):
+        position, goal = jnp.asarray(position, jnp.float32), jnp.asarray(goal, jnp.float32)
+        return np.asarray(guidance.aim(route.straight_plan(goal), position, goal, 0.6, reach))
+
+    steep = aim([0.0, 0.0, -1.0], [0.5, 0.0, 2.0])                      # 80 degrees above, 3 m away
+    np.testing.assert_allclose(np.linalg.norm(steep - [0.0, 0.0, -1.0]), reach, atol=1e-5)
+    np.testing.assert_allclose(steep - [0.0, 0.0, -1.0], reach * np.array([0.5, 0.0, 3.0]) / np.hypot(0.5, 3.0),
+                               atol=1e-5)
+    np.testing.assert_allclose(aim([0.0, 0.0, -1.0], [3.0, 0.0, 0.5]), [3.0, 0.0, 0.5], atol=1e-6)   # 27 degrees
+    np.testing.assert_allclose(aim([0.0, 0.0, 1.0], [0.2, 0.0, 3.0]), [0.2, 0.0, 3.0], atol=1e-6)    # in air

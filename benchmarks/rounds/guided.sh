@@ -5,7 +5,7 @@
 # (scenarios 1-3) and the paper's pairs; lane 3 flies the same seeds unguided on the same trials.
 #   bash benchmarks/gpu_lanes.sh benchmarks/rounds/guided.sh
 # Unpack runs/route of benchmarks/results/h100x4/tanks_memory/raw.tar.gz into .jobs/old_runs/runs first.
-LANES="0 1 2 3"
+LANES=${LANES:-"0 1 2 3"}   # LANES="0 1 2": the guided lanes only
 RUN=$R/old_runs/runs/route
 TANKS="--tests structured,tanks --trials 350 --layouts 1000"
 PERT="--perturbations wind_gusts,water_current,motor_lag,action_latency,beam_dropout,mass"

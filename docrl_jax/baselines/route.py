@@ -80,7 +80,7 @@ def guided(policy: Policy) -> Policy:
     if id(policy.act) not in _GUIDED:
         def act(params, carry, obs, info, key):
             position, goal = info["position"], info["goal"]
-            target = aim(params["plan"], position, goal, guidance.GUIDED_SIGHT_GAP)
+            target = aim(params["plan"], position, goal, guidance.GUIDED_SIGHT_GAP, guidance.GUIDED_STEEP_REACH)
             return policy.act(params["policy"], carry, guidance.guide(obs, position, info["yaw"], target), info, key)
         _GUIDED[id(policy.act)] = (act, policy)    # keeping the policy keeps its act's id unique
     return Policy(name=f"{policy.name} (route-guided)", params={"plan": None, "policy": policy.params},

@@ -11,8 +11,12 @@ middle of an opening and rounds corners ~1 m off.
 Each step `aim` picks the point to steer at: the farthest of the next `LOOK_AHEAD` cells down the field's
 steepest descent (`flyability.route_path` from the vehicle) that it sees, a line of sight keeping
 `SIGHT_GAP` from every solid at the sampled cells; the goal itself once within `DIRECT_RANGE` or when the
-goal's arrival sphere is in sight; off the free cells (a start 0.3 m above the floor, below the lowest free layer; a drift
-out of a thin layer) it rejoins them where route cost + distance is least (`_entry`).
+goal's arrival sphere is in sight; off the free cells (a start 0.3 m above the floor, below the lowest free
+layer; a drift out of a thin layer) it rejoins them where route cost + distance is least (`_entry`). For a
+learned policy (`GUIDED_STEEP_REACH`), under water an aim above steeper than `STEEP_DEG` comes no farther
+than 0.75 m: with a climb through an opening 1.5 m or more away and the opening's rim in its upper beams,
+the policy held its depth and timed out (W-A under ceilings and pipes: replayed stalled states climb with
+the aim 0.3-1 m away, descend with it 2 m or more away, even straight up).
 
 Two steer at the aim (docrl_jax/baselines/route.py): the privileged route-follower (scripted steering),
 and a learned policy with `route.guided` (its observation's goal floats point at the aim instead of the
@@ -41,6 +45,9 @@ GUIDED_SIGHT_GAP = 0.6    # m: the same for a learned policy (`guided`), which k
 SIGHT_STEP = 0.1          # m between the points a line of sight samples
 SIGHT_SAMPLES = 160       # points sampled toward the goal (16 m: the tank's diagonal)
 REACH_CELLS = 2           # off the free cells: where to rejoin them, within this many cells on each axis
+STEEP_DEG = 45.0          # deg: under water, an aim above steeper than this is a climb through an opening
+GUIDED_STEEP_REACH = 0.75  # m: `guided` brings such an aim this near: a learned policy holds its depth under a
+#                            structure when a steep aim is 1.5 m or more away (W-A time-outs under ceilings)
 
 _AROUND = np.stack(np.meshgrid(*[np.arange(-REACH_CELLS, REACH_CELLS + 1)] * 3, indexing="ij"), -1).reshape(-1, 3)
 
@@ -100,8 +107,9 @@ def _entry(field: jax.Array, position: jax.Array) -> jax.Array:
     return centres[jnp.argmin(cost)]
 
 
-def aim(params: dict, position: jax.Array, goal: jax.Array, sight_gap=None) -> jax.Array:
-    """The point (3,) to steer at (module doc); lines of sight keep `sight_gap` (default SIGHT_GAP)."""
+def aim(params: dict, position: jax.Array, goal: jax.Array, sight_gap=None, steep_reach=None) -> jax.Array:
+    """The point (3,) to steer at (module doc); lines of sight keep `sight_gap` (default SIGHT_GAP). With
+    `steep_reach`, under water an aim above steeper than STEEP_DEG lies at most that far (same direction)."""
     off_route = ~jnp.isfinite(flyability.field_at(params["field"], position))
     start = jnp.where(off_route, _entry(params["field"], position), position)
     path = flyability.route_path(params["field"], start, LOOK_AHEAD + 2)[1:]          # (LOOK_AHEAD + 1, 3)
@@ -115,7 +123,13 @@ def aim(params: dict, position: jax.Array, goal: jax.Array, sight_gap=None) -> j
     short = jnp.minimum(params["arrival"] + flyability.GRID_STEP, distance)
     sphere = goal + (position - goal) * short / jnp.maximum(distance, 1e-6)
     direct = (distance < DIRECT_RANGE) | in_sight(params, position, sphere, gap=sight_gap)
-    return jnp.where(direct, goal, target)
+    target = jnp.where(direct, goal, target)
+    if steep_reach is None:
+        return target
+    rel = target - position
+    steep = (position[2] < 0.0) & (rel[2] > np.tan(np.radians(STEEP_DEG)) * jnp.linalg.norm(rel[:2]))
+    near = position + rel * jnp.minimum(1.0, steep_reach / jnp.maximum(jnp.linalg.norm(rel), 1e-6))
+    return jnp.where(steep, near, target)
 
 
 def guide(obs: jax.Array, position: jax.Array, yaw: jax.Array, target: jax.Array) -> jax.Array:
