@@ -14,9 +14,8 @@ Writes tanks.csv and structured.csv (a row per tank or layout family and directi
 trial that did not arrive: where it ended, the route left, the nearest solid) and summary.md (OUT/<label>/
 per --policy).
 
-The Policy API shares its params over the trials of a rollout (`rollout.make_rollout`), and a route plan
-is a field per trial; so the trials run in this file's scan, the rollout's own (the same env.step,
-a finished trial frozen, the metrics of `rollout.trial_metrics`), mapped over (params, state) pairs.
+The trials run in the evaluator's rollout (`rollout.run_from_states`); each trip's plan (`guidance.trial_plans`)
+is the follower's or the guided policy's params (`Policy.trial_params`) and the diagnosis's route.
 """
 
 from __future__ import annotations
@@ -25,6 +24,7 @@ import argparse
 import csv
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import jax
@@ -35,18 +35,9 @@ from docrl_jax.baselines import route
 from docrl_jax.envs import flyability, geometry, guidance, layouts
 from docrl_jax.evaluate import robustness, rollout, tank_sets
 from docrl_jax.evaluate.tables import SHORT, summarize
-from docrl_jax.policy import Policy
 
 DIRECTIONS = ("air_to_water", "water_to_air")
 OUTCOME_NAMES = ("arrived", "collision", "out of bounds", "time-out", "diverged")
-
-
-def plans_of(stack, which, goals, p, crowding: float, batch: int = 25) -> dict:
-    """The follower's params (`guidance.plan`) of each trial: the free cells and gaps of each layout of
-    `stack` once, then trial i's field to goals[i] in layout which[i], `batch` at a time."""
-    cells = jax.lax.map(lambda l: (flyability.free_cells(l, p), flyability.cell_gaps(l)), stack, batch_size=batch)
-    one = lambda a: guidance.plan_cells(cells[0][a[0]], cells[1][a[0]], p, a[1], crowding)  # noqa: E731
-    return jax.lax.map(one, (which, goals), batch_size=batch)
 
 
 def route_length(field, start) -> jax.Array:
@@ -56,92 +47,50 @@ def route_length(field, start) -> jax.Array:
     return jnp.where(jnp.isfinite(flyability.field_at(field, start)), length, jnp.inf)
 
 
-_RUNNERS: dict = {}
+_DIAGNOSES: dict = {}
 
 
-def make_runner(env, policy, max_steps: int, shared: bool = False):
-    """jit(vmap) over trials of (params, initial state) -> the rollout's records and the diagnosis. The
-    follower's params are a plan per trial; with `shared` they are {"plan": a plan per trial, "policy": a
-    learned policy's params, shared over the trials} (`steered`), so policies of one architecture
-    (`rollout.policy_for` shares their act) compile once."""
-    cache_key = (id(env), id(policy.act), max_steps, shared)
-    if cache_key in _RUNNERS:
-        return _RUNNERS[cache_key]
-    walls = env.walls
-
-    def episode(params, state0):
-        def body(c, k):
-            state, pcarry, done = c
-            new_pcarry, action = policy.act(params, pcarry, state.obs, state.info, k)
-            new_state = env.step(state, action)
-            keep = lambda new, old: jnp.where(done, old, new)  # noqa: E731
-            rec = {"position": keep(new_state.info["position"], state.info["position"]),
-                   "underwater_before": state.info["underwater"], "taken": ~done,
-                   "reward": jnp.where(done, 0.0, new_state.reward),
-                   "min_range": jnp.where(done, jnp.inf, jnp.min(new_state.info["ranges"]))}
-            return (jax.tree.map(keep, new_state, state), jax.tree.map(keep, new_pcarry, pcarry),
-                    done | new_state.done), rec
-
-        keys = jax.random.split(jax.random.PRNGKey(0), max_steps)   # the follower draws nothing
-        (final, _, _), rec = jax.lax.scan(body, (state0, policy.init_carry(), jnp.zeros((), bool)), keys)
-        plan = params["plan"] if shared else params
-        info, layout, field = final.info, final.sim.layout, plan["field"]   # field: route cost (m)
-        end = info["position"]
-        obstacle_gaps = jnp.concatenate([geometry.box_distances(layouts.obstacles(layout), end),
-                                         geometry.capsule_distances(layouts.obstacles(layout), end)])
-        return {"positions": jnp.concatenate([state0.info["position"][None], rec["position"]]),
-                "underwater_before": rec["underwater_before"], "taken": rec["taken"], "rewards": rec["reward"],
-                "arrived": info["arrived"], "collision": info["collision"], "out_of_bounds": info["out_of_bounds"],
-                "terminated": info["terminated"], "final_distance": info["distance"],
-                "min_range": jnp.min(rec["min_range"]), "end_ranges": info["ranges"],
-                "route_start": flyability.field_at(field, state0.info["position"]),
-                "route_m": route_length(field, state0.info["position"]),
-                "route_end": flyability.field_at(field, end),
-                "start_gap": geometry.signed_distance(layouts.obstacles(layout), state0.info["position"]),
-                "end_obstacle_gap": jnp.min(obstacle_gaps), "end_obstacle": jnp.argmin(obstacle_gaps),
-                "end_boundary_gap": geometry.signed_distance(layouts.boundary(layout, walls), end)}
-
-    _RUNNERS[cache_key] = jax.jit(jax.vmap(episode, in_axes=(route.PLAN_AXES if shared else 0, 0)))
-    return _RUNNERS[cache_key]
-
-
-_STEERED: dict = {}
-
-
-def steered(pilot, guide: bool):
-    """`pilot` as the runner flies it, params {"plan", "policy"}: route-guided (`route.guided`) or as it
-    is (the plan only diagnoses). One wrapper per act function, so one compiled runner per architecture."""
-    key = (id(pilot.act), guide)
-    if key not in _STEERED:
-        _STEERED[key] = route.guided(pilot) if guide else Policy(
-            pilot.name, None, pilot.init_carry, lambda p, c, o, i, k: pilot.act(p["policy"], c, o, i, k))
-    return _STEERED[key]
+def diagnose(env, plans, trips, start, end) -> dict:
+    """Per trial, from its plan, its layout and where it started and ended: the route (cost at the start and
+    the end, length from the start) and the gaps to the nearest obstacle and boundary (jit(vmap), per env)."""
+    if id(env) not in _DIAGNOSES:
+        def one(plan, layout, a, b):
+            field, obstacles = plan["field"], layouts.obstacles(layout)
+            gaps = jnp.concatenate([geometry.box_distances(obstacles, b), geometry.capsule_distances(obstacles, b)])
+            return {"route_start": flyability.field_at(field, a), "route_m": route_length(field, a),
+                    "route_end": flyability.field_at(field, b), "start_gap": geometry.signed_distance(obstacles, a),
+                    "end_obstacle_gap": jnp.min(gaps), "end_obstacle": jnp.argmin(gaps),
+                    "end_boundary_gap": geometry.signed_distance(layouts.boundary(layout, env.walls), b)}
+        _DIAGNOSES[id(env)] = (jax.jit(jax.vmap(one)), env)
+    return {k: np.asarray(v) for k, v in jax.device_get(_DIAGNOSES[id(env)][0](plans, trips, start, end)).items()}
 
 
 def fly(test: str, stack, which, direction: str, seed: int, max_steps: int, crowding: float,
         pilot=None, vehicle=None, guide: bool = True) -> dict:
     """The trips of a robustness layout test (`test`: tanks or structured) in one direction, trip i in
-    layout which[i] of `stack`, flown by the route-follower, or by `pilot` (a learned Policy; a
-    steered by each trip's plan with `guide`, `route.guided`) in its `vehicle` (`run_dirs.run_vehicle`):
-    `rollout.trial_metrics` plus the diagnosis."""
-    count, vehicle = len(which), vehicle or {}
+    layout which[i] of `stack` (the benchmark's own states, plants and policy keys), flown by the evaluator's
+    rollout: the route-follower, or `pilot` (a learned Policy) steered by each trip's plan with `guide`
+    (`route.guided`), in its `vehicle` (`run_dirs.run_vehicle`): `rollout.trial_metrics` plus `diagnose`.
+    Each trip is planned once (`guidance.trial_plans` at `crowding`): the follower's or the guided pilot's
+    params, and the diagnosis's route."""
+    vehicle = vehicle or {}
     host = rollout.make_eval_env(0, max_steps, **vehicle)
     start_w, goal_w = robustness.MEDIA[direction]
     sampler = rollout.make_eval_env(0, max_steps, start_water_fraction=start_w, goal_water_fraction=goal_w, **vehicle)
-    keys = robustness.trip_keys(seed, test, 0, direction, count)
-    k_reset, _ = jax.vmap(rollout.split_trial_key, out_axes=1)(keys)
+    keys = robustness.trip_keys(seed, test, 0, direction, len(which))
+    k_reset, k_policy = jax.vmap(rollout.split_trial_key, out_axes=1)(keys)
     nominal = rollout.eval_params(0, max_steps, **vehicle)
     trips = jax.tree.map(lambda x: x[np.asarray(which)], stack)
     states = rollout.reset_states(sampler, k_reset, trips, rollout.plants_for(nominal, k_reset))
-    plans = jax.jit(plans_of, static_argnums=(3, 4))(stack, jnp.asarray(which), states.info["goal"], host.params,
-                                                     crowding)
+    plans = guidance.trial_plans(host, states, crowding)
     if pilot is None:
-        policy, params, shared = route.route_follower(), plans, False
+        policy = replace(route.route_follower(), trial_params=lambda params, env, s: plans)
+    elif guide:
+        policy = replace(route.guided(pilot), trial_params=lambda params, env, s: {**params, "plan": plans})
     else:
-        policy, params, shared = steered(pilot, guide), {"plan": plans, "policy": pilot.params}, True
-    out = jax.device_get(make_runner(host, policy, max_steps, shared)(params, states))
-    out = {k: np.asarray(v) for k, v in out.items()}
-    trials = rollout.trial_metrics(out, host.control_dt, out["positions"][:, 0], np.asarray(states.info["yaw"]))
+        policy = pilot
+    trials = rollout.run_from_states(host, policy, states, k_policy, max_steps)
+    trials.update(diagnose(host, plans, trips, trials["positions"][:, 0], trials["positions"][:, -1]))
     trials["goals"] = np.asarray(states.info["goal"])
     return trials
 
@@ -170,7 +119,7 @@ def rows_by(groups: np.ndarray, names, trials: dict, direction: str, extra=None)
 # failures.csv's measured columns: (column, the trials' array); values rounded to cm.
 FAILURE_COLUMNS = (("start", "start_positions"), ("goal", "goals"), ("route_m", "route_m"),
                    ("route_cost_start", "route_start"), ("route_cost_end", "route_end"),
-                   ("final_distance_m", "final_distance"), ("min_range_m", "min_range"), ("start_gap_m", "start_gap"),
+                   ("final_distance_m", "final_distance"), ("start_gap_m", "start_gap"),
                    ("end_obstacle_gap_m", "end_obstacle_gap"), ("end_boundary_gap_m", "end_boundary_gap"),
                    ("path_m", "path_length"))
 FAILURE_FIELDS = ("test", "where", "direction", "trial", "outcome", "steps", "end", "end_obstacle_slot",
