@@ -55,11 +55,12 @@ FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive
 # compile under FAST_COMPILE (pytest_runtest_setup below). CPU seconds per file, level 1 ->
 # FAST_COMPILE, measured in one pytest process over these and other env and evaluator files, the
 # two settings' runs side by side on 2 cores: env_contract (alone) 125 -> 115, physics 101 -> 85,
-# procedural 79 -> 61, randomization 33 -> 29, sensors 26 -> 22. Not the files whose programs run
+# procedural 79 -> 61, randomization 33 -> 29, sensors 26 -> 22, curriculum 39 -> 30 (its pool's
+# programs are built on its own generator and check). Not the files whose programs run
 # long (training, structures' flyability checks, the robustness trials), where level 1 pays, nor
 # those sharing the package's cached evaluators with them.
 FAST_COMPILE_FILES = ("tests/envs/test_env_contract.py", "tests/envs/test_physics.py", "tests/envs/test_procedural.py",
-                      "tests/envs/test_randomization.py", "tests/envs/test_sensors.py")
+                      "tests/envs/test_randomization.py", "tests/envs/test_sensors.py", "tests/envs/test_curriculum.py")
 
 
 # ------------------------------------------------------------------ how two workers share the suite
