@@ -61,6 +61,12 @@ def test_a_goal_near_the_floor_in_open_water_is_flown_at_straight():
     plan = guidance.plan_cells(free, gap, env.params, goal)
     assert float(flyability.field_at(gap, goal)) < guidance.GUIDED_SIGHT_GAP        # the goal itself is not in sight
     np.testing.assert_array_equal(guidance.aim(plan, start, goal, guidance.GUIDED_SIGHT_GAP), goal)
+    # The evaluator's per-trial plans in a fixed scenario (its one tank gridded once): trial 1 is this plan.
+    from types import SimpleNamespace
+    states = SimpleNamespace(sim=SimpleNamespace(layout=None), info={"goal": jnp.stack([start, goal])})
+    plans = guidance.trial_plans(env, states)
+    for key in ("field", "gap", "arrival"):
+        np.testing.assert_array_equal(plans[key][1], plan[key])
 
 
 def test_a_steep_aim_under_water_comes_near_and_no_other():

@@ -2,8 +2,8 @@
 
 `plan` gives one trip's params: `gap`, every grid cell's distance to the nearest solid (walls, floor,
 obstacles), `arrival`, the env's arrival distance, and `field`, the route cost from every free cell
-(flyability's: 0.55 m from every solid) to the cells within the arrival distance of the goal. The cost of a move is its length times 1 + `crowding` x
-how far the cell lies inside `SAFE_GAP` of a solid (0 at SAFE_GAP, 1 at the free cells' edge): with
+(flyability's: 0.55 m from every solid) to the cells within the arrival distance of the goal. The cost of
+a move is its length times 1 + `crowding` x how far the cell lies inside `SAFE_GAP` of a solid (0 at SAFE_GAP, 1 at the free cells' edge): with
 `crowding` 0 it is flyability's own `distance_field`, whose shortest routes graze corners at 0.55 m, a few
 centimetres of drift from the fans' 0.5 m collision reading; with the default the route keeps to the
 middle of an opening and rounds corners ~1 m off.
@@ -20,8 +20,8 @@ the aim 0.3-1 m away, descend with it 2 m or more away, even straight up).
 
 Two steer at the aim (docrl_jax/baselines/route.py): the privileged route-follower (scripted steering),
 and a learned policy with `route.guided` (its observation's goal floats point at the aim instead of the
-goal: `guide`). A mapless policy pulled straight at its goal stalls where the way round a wall or up through a
-ceiling's opening first leads away from it; guided, it follows the route and keeps its own obstacle
+goal: `guide`). A mapless policy pulled straight at its goal stalls where the way round a wall or up
+through a ceiling's opening first leads away from it; guided, it follows the route and keeps its own obstacle
 avoidance from the ranges. The episode still ends at the real goal.
 """
 
@@ -73,15 +73,19 @@ _TRIAL_PLANS: dict = {}   # (id(env), crowding, batch) -> (jit of the plans, env
 def trial_plans(env, states, crowding: float = CROWDING, batch: int = 25) -> dict:
     """A plan per trial (leading axis) from the trials' initial `states` in `env`: the tank each state holds
     (its layout, or the fixed scenario's geoms: `HUAUVEnv.solids`) and its goal; `batch` trials at a time
-    (each holds a few grids of the tank)."""
+    (each holds a few grids of the tank). A fixed scenario's one tank is gridded once for all its trials."""
     cache_key = (id(env), float(crowding), int(batch))
     if cache_key not in _TRIAL_PLANS:
-        def one(args):
-            layout, goal = args
-            free, gap = flyability.tank_cells(*env.solids(layout), env.params)
-            return plan_cells(free, gap, env.params, goal, crowding)
-        plans = jax.jit(lambda layout, goals: jax.lax.map(one, (layout, goals), batch_size=batch))
-        _TRIAL_PLANS[cache_key] = (plans, env)
+        def plan_in(cells, goal):
+            return plan_cells(*cells, env.params, goal, crowding)
+
+        def plans(layout, goals):
+            if layout is None:   # a fixed scenario (traced once per env: the structure is static)
+                cells = flyability.tank_cells(*env.solids(), env.params)
+                return jax.lax.map(lambda goal: plan_in(cells, goal), goals, batch_size=batch)
+            one = lambda a: plan_in(flyability.tank_cells(*env.solids(a[0]), env.params), a[1])  # noqa: E731
+            return jax.lax.map(one, (layout, goals), batch_size=batch)
+        _TRIAL_PLANS[cache_key] = (jax.jit(plans), env)
     return _TRIAL_PLANS[cache_key][0](states.sim.layout, states.info["goal"])
 
 

@@ -217,8 +217,9 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
                          "method, in order (each --run, then --policy), or none")
     for m, label in zip(methods, labels):
         m.label = label
-    for m in methods if args.guide and not labels else ():
-        m.label = m.label and rollout.guided_label(m.label)
+    if args.guide and not labels:   # labels the command made say the methods fly guided
+        for m in methods:
+            m.label = m.label and rollout.guided_label(m.label)
     for m in methods:
         if m.label is None:
             raise UsageError(f"--run {' '.join(m.runs)}: the run directories hold different configs "
