@@ -39,8 +39,11 @@ CRITIC_ACTIVATION_FACTOR = {True: 8, False: 4}  # critic_layer_norm -> factor
 
 
 def carry_size(c: Config) -> int:
-    """Floats in one actor carry: (c, h) of the LSTM, or a 1-float placeholder for an MLP actor."""
-    return 2 * c.agent.actor_hidden[0] if c.agent.actor == "lstm" else 1
+    """Floats in one actor carry: (c, h) of the LSTM, an MLP's previous frames (agent.frames > 1), or a
+    1-float placeholder for a memoryless MLP actor."""
+    if c.agent.actor == "lstm":
+        return 2 * c.agent.actor_hidden[0]
+    return (c.agent.frames - 1) * observation_size(c) if c.agent.frames > 1 else 1
 
 
 def step_bytes(c: Config) -> int:

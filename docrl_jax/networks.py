@@ -50,19 +50,29 @@ class LSTMActor(nn.Module):
 
 
 class MLPActor(nn.Module):
-    """The baselines' actor: hidden ReLU layers -> tanh output or Gaussian head."""
+    """The baselines' actor: hidden ReLU layers -> tanh output or Gaussian head.
+
+    With `frames` > 1 it reads stacked observations: the current one after the `frames` - 1 before it,
+    which its carry holds (zeros before an episode's first step), so the trainer stores, burns in and
+    resets that carry exactly as it does an LSTM's. `obs_size` sizes that carry."""
     hidden: Sequence[int]
     stochastic: bool = False
+    frames: int = 1
+    obs_size: int = 0
 
     @nn.compact
     def __call__(self, carry, obs):
-        h = obs
+        h = obs if self.frames == 1 else jnp.concatenate([carry[0], obs], axis=-1)
+        if self.frames > 1:
+            carry = (h[..., obs.shape[-1]:],)  # the oldest frame drops out
         for i, width in enumerate(self.hidden):
             h = nn.relu(nn.Dense(width, name=f"dense_{i}")(h))
         return carry, _Head(self.stochastic, name="head")(h)
 
     def init_carry(self, batch_shape=()):
-        return (jnp.zeros((*batch_shape, 1), jnp.float32),)  # placeholder: keeps one carry layout
+        # one float is a placeholder that keeps one carry layout for a memoryless actor
+        width = (self.frames - 1) * self.obs_size if self.frames > 1 else 1
+        return (jnp.zeros((*batch_shape, width), jnp.float32),)
 
 
 class QNetwork(nn.Module):
@@ -112,10 +122,16 @@ class Critic(nn.Module):
             {"params": one}, jnp.concatenate([obs, action], axis=-1))
 
 
-def make_actor(kind: str, hidden: Sequence[int], stochastic: bool) -> nn.Module:
+def make_actor(kind: str, hidden: Sequence[int], stochastic: bool, frames: int = 1, obs_size: int = 0) -> nn.Module:
     if kind == "lstm":
         return LSTMActor(units=hidden[0], stochastic=stochastic)
-    return MLPActor(hidden=tuple(hidden), stochastic=stochastic)
+    return MLPActor(hidden=tuple(hidden), stochastic=stochastic, frames=frames, obs_size=obs_size)
+
+
+def carry_features(carry) -> jax.Array:
+    """An actor carry as one flat feature vector per row ([..., floats]): what critics that see the
+    actor's memory (agent.critic_carry) read beside the observation."""
+    return jnp.concatenate(jax.tree.leaves(carry), axis=-1)
 
 
 def make_critic(agent_config) -> Critic:

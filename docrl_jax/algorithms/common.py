@@ -14,7 +14,7 @@ import optax
 from flax import struct
 
 from docrl_jax.envs import ACTION_SIZE
-from docrl_jax.networks import unroll
+from docrl_jax.networks import carry_features, unroll
 
 
 @struct.dataclass
@@ -160,6 +160,14 @@ def run_actor(actor, params, seq: SeqBatch, memory: bool):
     return outs, carries_after
 
 
+def critic_view(obs, carry, sees_carry: bool):
+    """What the critics read: the observation, and with agent.critic_carry the actor's carry after it
+    (`carries_after` of `run_actor`), its gradient stopped so that no critic loss trains the actor."""
+    if not sees_carry:
+        return obs
+    return jnp.concatenate([obs, jax.lax.stop_gradient(carry_features(carry))], axis=-1)
+
+
 def nstep_targets(reward, terminated, truncated, bootstrap, gamma: float, n: int, discounts=None):
     """n-step TD targets inside one sampled window of trained steps (time on axis 0, [T, B]).
 
@@ -212,13 +220,14 @@ def adam(lr: float) -> optax.GradientTransformation:
     return optax.adam(lr)
 
 
-def init_agent_state(key, obs_size: int, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx) -> "AgentState":
+def init_agent_state(key, obs_size: int, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx,
+                     critic_carry: bool = False) -> "AgentState":
     """Fresh actor and critics for observations of `obs_size` floats (targets start equal to them) with
-    their optimiser states."""
+    their optimiser states; with `critic_carry` the critics read the actor's carry beside the obs."""
     k_a, k_c = jax.random.split(key)
-    obs, act = jnp.zeros((1, obs_size)), jnp.zeros((1, ACTION_SIZE))
-    actor_params = actor.init(k_a, actor.init_carry((1,)), obs)
-    critic_params = critic.init(k_c, obs, act)
+    obs, act, carry = jnp.zeros((1, obs_size)), jnp.zeros((1, ACTION_SIZE)), actor.init_carry((1,))
+    actor_params = actor.init(k_a, carry, obs)
+    critic_params = critic.init(k_c, critic_view(obs, carry, critic_carry), act)
     return AgentState(actor=actor_params, actor_average=actor_params, actor_target=actor_params, critic=critic_params,
                       critic_target=critic_params, actor_opt=actor_tx.init(actor_params),
                       critic_opt=critic_tx.init(critic_params), log_alpha=log_alpha,

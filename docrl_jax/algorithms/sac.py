@@ -8,6 +8,8 @@ Per gradient update, on a batch of sequences (see `common.split_batch`):
   critics  sum_i mean_mask (Q_i(s, a) - y)^2
   actor    every policy_freq critic updates: mean_mask(alpha * logp(a|s) - min_i Q_i(s, a)), a ~ pi(.|s)
   alpha    same steps: -mean_mask(log_alpha * (logp + target_entropy)); then soft critic targets.
+With agent.critic_carry every Q reads (s, the actor's carry after s) (`common.critic_view`): the critics
+see the memory the actor acts on.
 log pi(a|s) of a = tanh(u), u = mean + std * eps: sum(log N(u; mean, std) - log(1 - a^2 + 1e-6)) (orig).
 """
 
@@ -19,7 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients,
-                                         critic_regression, init_agent_state, lr_scale_delta, masked_mean,
+                                         critic_regression, critic_view, init_agent_state, lr_scale_delta, masked_mean,
                                          critic_step, delayed_policy_step, nstep_targets, run_actor, soft_update,
                                          split_batch)
 from docrl_jax.config import Config, observation_size
@@ -40,20 +42,22 @@ def sample_action(mean, log_std, eps):
 def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, eps, a_cfg, memory, hp=None):
     hp = HParams.from_agent_config(a_cfg) if hp is None else hp
     alpha = jnp.exp(state.log_alpha)
+    seen = a_cfg.critic_carry
     _, carries_after = run_actor(actor, jax.lax.stop_gradient(state.actor), seq, memory)
-    _, (mean, log_std) = actor.apply(state.actor, carries_after, seq.next_obs)
+    next_carry, (mean, log_std) = actor.apply(state.actor, carries_after, seq.next_obs)
     next_a, next_logp = sample_action(mean, log_std, eps)
-    q_next = jnp.min(critic.apply(state.critic_target, seq.next_obs, next_a), axis=0) - alpha * next_logp
+    q_next = jnp.min(critic.apply(state.critic_target, critic_view(seq.next_obs, next_carry, seen), next_a),
+                     axis=0) - alpha * next_logp
     y = jax.lax.stop_gradient(nstep_targets(seq.reward, seq.terminated, seq.truncated, q_next, hp.gamma,
                                             a_cfg.n_step, hp.discounts))
-    q = critic.apply(critic_params, seq.obs, seq.action)
+    q = critic.apply(critic_params, critic_view(seq.obs, carries_after, seen), seq.action)
     return critic_regression(q, y, seq.mask), {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
 
 
-def actor_loss(actor_params, actor, critic, critic_params, log_alpha, seq: SeqBatch, eps, memory):
-    (mean, log_std), _ = run_actor(actor, actor_params, seq, memory)
+def actor_loss(actor_params, actor, critic, critic_params, log_alpha, seq: SeqBatch, eps, memory, sees_carry=False):
+    (mean, log_std), carries_after = run_actor(actor, actor_params, seq, memory)
     a, logp = sample_action(mean, log_std, eps)
-    q = jnp.min(critic.apply(critic_params, seq.obs, a), axis=0)
+    q = jnp.min(critic.apply(critic_params, critic_view(seq.obs, carries_after, sees_carry), a), axis=0)
     return masked_mean(jnp.exp(log_alpha) * logp - q, seq.mask), logp
 
 
@@ -63,18 +67,19 @@ def alpha_loss(log_alpha, logp, target_entropy, mask):
 
 def make_sac(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
-    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=True)
+    obs_size = observation_size(config)
+    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, True, a_cfg.frames, obs_size)
     critic = make_critic(a_cfg)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = alpha_tx = adam(1.0)
     burn_in = config.replay.burn_in
     hparams = HParams.from_agent_config(a_cfg)
-    obs_size = observation_size(config)
 
     def init(key, hp=None):
         hp = hparams if hp is None else hp
         log_alpha = jnp.asarray(hp.log_init_alpha, jnp.float32)
-        return init_agent_state(key, obs_size, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx)
+        return init_agent_state(key, obs_size, actor, critic, actor_tx, critic_tx, log_alpha, alpha_tx,
+                                a_cfg.critic_carry)
 
     def init_noise(num_envs):
         return jnp.zeros((num_envs, ACTION_SIZE))  # unused: SAC explores by sampling
@@ -101,7 +106,7 @@ def make_sac(config: Config) -> Agent:
 
         def policy_step(s: AgentState):
             (a_loss, logp), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
-                s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, memory)
+                s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, memory, a_cfg.critic_carry)
             actor_params, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale, hp.actor_lr)
             al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, hp.target_entropy, seq.mask)
             log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha, lr=hp.alpha_lr)

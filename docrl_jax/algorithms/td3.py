@@ -57,13 +57,13 @@ def actor_loss(actor_params, actor, critic, critic_params, seq: SeqBatch, memory
 def make_td3(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
     ddpg = a_cfg.algo == "ddpg"
-    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, stochastic=False)
+    obs_size = observation_size(config)
+    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, False, a_cfg.frames, obs_size)
     critic = make_critic(a_cfg)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = adam(1.0)
     burn_in = config.replay.burn_in
     hparams = HParams.from_agent_config(a_cfg)
-    obs_size = observation_size(config)
 
     def init(key, hp=None):  # TD3/DDPG have no temperature: a constant log_alpha with a frozen optimiser
         return init_agent_state(key, obs_size, actor, critic, actor_tx, critic_tx, jnp.zeros(()), adam(0.0))

@@ -39,6 +39,11 @@ def validate(c: Config) -> Config:
         bad("replay.burn_in", r.burn_in, f"must be < replay.seq_len={r.seq_len} (at least one trained step)")
     if a.actor == "lstm" and len(a.actor_hidden) != 1:
         bad("agent.actor_hidden", list(a.actor_hidden), "an lstm actor takes one entry, the LSTM units, e.g. [32]")
+    if a.frames < 1 or (a.frames > 1 and a.actor != "mlp"):
+        bad("agent.frames", a.frames, "must be 1, or > 1 with agent.actor mlp (stacked observations)")
+    if a.critic_carry and not (a.recurrent and a.algo == "sac"):
+        bad("agent.critic_carry", True, "needs agent.algo sac and a recurrent actor (lstm with agent.memory true, "
+                                        "or mlp with agent.frames > 1)")
     if not a.recurrent and r.burn_in != 0:
         why = "an mlp actor" if a.actor == "mlp" else "agent.memory false (the memoryless LSTM)"
         bad("replay.burn_in", r.burn_in, f"{why} has no carry to warm up: set burn_in 0 (seq_len > 1 only "

@@ -54,6 +54,12 @@ class AgentConfig:
                                             "mlp: the hidden widths (orig DDPG 512-512, SAC 256-256).")
     critic_hidden: tuple = documented((512, 512), "Hidden widths of each critic MLP on concat(obs, action) "
                                                   "(orig TD3 512-512, SAC 256-256).")
+    frames: int = documented(1, "mlp: observations the actor reads, the current one after the frames - 1 before "
+                                "it (stacked observations; zeros before an episode's first step). 1 = the "
+                                "current one alone. Memory for an MLP, without a recurrent network.")
+    critic_carry: bool = documented(False, "sac: the critics read the actor's carry after each observation (LSTM c "
+                                           "and h, or an mlp's stacked frames) beside it, gradient stopped, so they "
+                                           "judge actions with the memory the actor acts on. Needs a recurrent actor.")
     memory: bool = documented(True, "true: the LSTM carry flows from step to step and resets at episode start. "
                                     "false: zero carry on every call, the original's memoryless LSTM "
                                     "(requires replay.burn_in 0).")
@@ -100,9 +106,9 @@ class AgentConfig:
 
     @property
     def recurrent(self) -> bool:
-        """True when the actor carries state from step to step (an LSTM with memory): the one rule
-        for stored carries, burn-in and carry resets at episode starts."""
-        return self.actor == "lstm" and self.memory
+        """True when the actor carries state from step to step (an LSTM with memory, or an MLP reading
+        stacked frames): the one rule for stored carries, burn-in and carry resets at episode starts."""
+        return self.memory and (self.actor == "lstm" or self.frames > 1)
 
 
 @dataclass(frozen=True)

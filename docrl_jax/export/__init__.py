@@ -116,6 +116,9 @@ def export_actor(config, params, out_dir: str | Path, source: dict[str, Any],
     checks every artefact, then writes `policy.json` (returned). `source` says where the params came
     from (it is copied into the manifest)."""
     formats = check_formats(formats)
+    if config.agent.frames > 1:
+        raise ExportError(f"agent.frames {config.agent.frames}: the export writes LSTM and single-frame MLP "
+                          f"actors; an actor reading stacked observations is not exported")
     out_dir = prepare_out_dir(out_dir, force)
     step = artefacts.step_function(config, params)
     inputs, outputs = manifest_mod.io_names(config.agent.recurrent)
