@@ -4,6 +4,7 @@ while acting, load_policy and its errors, the command line's refusals, non-finit
 from __future__ import annotations
 
 import csv
+import dataclasses
 import re
 import shutil
 import subprocess
@@ -169,17 +170,28 @@ def test_command_line_refuses_bad_input_before_compiling(tmp_path):
     assert out.returncode == 0 and "--resume" in out.stdout and "--set" in out.stdout
 
 
-def test_non_finite_loss_stops_and_keeps_the_last_good_checkpoint(capsys):
+def test_non_finite_loss_stops_and_keeps_the_last_good_checkpoint(capsys, monkeypatch):
     """A real NaN, not an injected marker: a healthy first chunk is checkpointed, then the run resumes
-    with absurd learning rates (1e30), so Adam's first steps push the weights to ~1e30 and the critic
-    loss overflows. The run must stop with EXIT_NONFINITE, say where, write no poisoned checkpoint or
-    metrics row, and keep the last good checkpoint."""
+    from it with the critics' weights scaled by 1e30 as they are read back (the checkpoint on disk stays
+    good), so the critic loss of the first update overflows. The run must stop with EXIT_NONFINITE, say
+    where, write no poisoned checkpoint or metrics row, and keep the last good checkpoint. Poisoned
+    weights rather than absurd learning rates: those are constants of the chunk program, so that run
+    compiled a training program of its own (about 35 s of this suite on 2 cores); this one runs the
+    programs every trainer test shares."""
     d = tmp_dir("nonfinite")
-    assert train_run.run(easy_config(train__checkpoint_every=4000), d, show_progress=False,
-                   stop_after_chunks=1) == cli.EXIT_INTERRUPTED
+    config = easy_config(train__checkpoint_every=4000)
+    assert train_run.run(config, d, show_progress=False, stop_after_chunks=1) == cli.EXIT_INTERRUPTED
     assert checkpoint.latest_step(d) == 4000
-    absurd = easy_config(train__checkpoint_every=4000, agent__actor_lr=1e30, agent__critic_lr=1e30)
-    status = train_run.run(absurd, d, resume=True, console=cli.make_console(), show_progress=False)
+    read_back = checkpoint.restore_newest_intact
+
+    def poisoned(*args, **kwargs):
+        restored = read_back(*args, **kwargs)
+        agent = restored.state.agent
+        agent = agent.replace(critic=jax.tree.map(lambda w: w * 1e30, agent.critic))
+        return dataclasses.replace(restored, state=restored.state.replace(agent=agent))
+
+    monkeypatch.setattr(checkpoint, "restore_newest_intact", poisoned)
+    status = train_run.run(config, d, resume=True, console=cli.make_console(), show_progress=False)
     assert status == cli.EXIT_NONFINITE
     assert re.search(r"non-finite loss at env step \d+ \(seed 0\)", capsys.readouterr().out)
     assert checkpoint.latest_step(d) == 4000
