@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import functools
 import os
+import shutil
+import tempfile
 
 # The suite mostly compiles (a run's programs take 30-50 s on 2 cores, running them seconds). XLA's
 # CPU back end at optimisation level 1, not 2: measured on the procedural learning test's programs,
@@ -12,6 +14,15 @@ import os
 # machine code changes: every comparison in the suite is between programs built under the same flags.
 # Set before JAX creates its backend; a subprocess inherits it (and may append its own).
 os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} --xla_backend_optimization_level=1".strip()
+
+# Tests that launch training through the command line turn on JAX's persistent compilation cache, by
+# default in the user's home (~/.cache/docrl_jax/jax). The suite keeps its own instead: one folder per
+# pytest run, made by the first process (xdist's workers inherit it) and removed by it at the end. No test
+# writes into the home folder, and a machine that ran the suite before compiles what a clean CI machine
+# compiles, so the suite's time is the same wherever it runs.
+if "DOCRL_JAX_COMPILE_CACHE" not in os.environ:
+    os.environ["DOCRL_JAX_COMPILE_CACHE"] = tempfile.mkdtemp(prefix="docrl_jax_test_cache_")
+    os.environ["DOCRL_JAX_TEST_CACHE_OWNER"] = str(os.getpid())
 
 import jax
 import jax.numpy as jnp
@@ -158,3 +169,8 @@ def env_fns():
     def get(scenario: int = 1, **overrides):
         return _env_fns(scenario, tuple(sorted(overrides.items())))
     return get
+
+
+def pytest_unconfigure(config):
+    if os.environ.get("DOCRL_JAX_TEST_CACHE_OWNER") == str(os.getpid()):
+        shutil.rmtree(os.environ["DOCRL_JAX_COMPILE_CACHE"], ignore_errors=True)
