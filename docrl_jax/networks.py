@@ -6,7 +6,7 @@ Every actor has one calling convention, so the trainer treats LSTM and MLP actor
 
 `out` is the action in [-1, 1]^3 for a deterministic actor, or `(mean, log_std)` of the
 pre-tanh Gaussian for a stochastic (SAC) actor. An MLP actor passes its 1-float placeholder carry
-through unchanged. Critics return one Q-value per critic head, stacked on axis 0.
+through unchanged, or, reading stacked observations, carries the frames before the current one. Critics return one Q-value per critic head, stacked on axis 0.
 """
 
 from __future__ import annotations
