@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import jax
+
 from docrl_jax.config import Config, ConfigError, check_batch_size, observation_size
 from docrl_jax.envs import ACTION_SIZE
 
@@ -39,11 +41,12 @@ CRITIC_ACTIVATION_FACTOR = {True: 8, False: 4}  # critic_layer_norm -> factor
 
 
 def carry_size(c: Config) -> int:
-    """Floats in one actor carry: (c, h) of the LSTM, an MLP's previous frames (agent.frames > 1), or a
-    1-float placeholder for a memoryless MLP actor."""
-    if c.agent.actor == "lstm":
-        return 2 * c.agent.actor_hidden[0]
-    return (c.agent.frames - 1) * observation_size(c) if c.agent.frames > 1 else 1
+    """Floats in one actor carry, as the config's actor makes it (`init_carry`): (c, h) of the LSTM, an
+    MLP's previous frames (agent.frames > 1), or a 1-float placeholder for a memoryless MLP actor."""
+    from docrl_jax.networks import make_actor
+    actor = make_actor(c.agent, observation_size(c), stochastic=False)
+    carry = jax.eval_shape(lambda: actor.init_carry(()))   # shapes only: nothing is allocated
+    return sum(int(leaf.size) for leaf in jax.tree.leaves(carry))
 
 
 def step_bytes(c: Config) -> int:

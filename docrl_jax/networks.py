@@ -6,7 +6,8 @@ Every actor has one calling convention, so the trainer treats LSTM and MLP actor
 
 `out` is the action in [-1, 1]^3 for a deterministic actor, or `(mean, log_std)` of the
 pre-tanh Gaussian for a stochastic (SAC) actor. An MLP actor passes its 1-float placeholder carry
-through unchanged, or, reading stacked observations, carries the frames before the current one. Critics return one Q-value per critic head, stacked on axis 0.
+through unchanged, or, reading stacked observations, carries the frames before the current one. Critics
+return one Q-value per critic head, stacked on axis 0.
 """
 
 from __future__ import annotations
@@ -62,8 +63,9 @@ class MLPActor(nn.Module):
 
     @nn.compact
     def __call__(self, carry, obs):
-        h = obs if self.frames == 1 else jnp.concatenate([carry[0], obs], axis=-1)
+        h = obs
         if self.frames > 1:
+            h = jnp.concatenate([carry[0], obs], axis=-1)
             carry = (h[..., obs.shape[-1]:],)  # the oldest frame drops out
         for i, width in enumerate(self.hidden):
             h = nn.relu(nn.Dense(width, name=f"dense_{i}")(h))
@@ -122,10 +124,13 @@ class Critic(nn.Module):
             {"params": one}, jnp.concatenate([obs, action], axis=-1))
 
 
-def make_actor(kind: str, hidden: Sequence[int], stochastic: bool, frames: int = 1, obs_size: int = 0) -> nn.Module:
-    if kind == "lstm":
-        return LSTMActor(units=hidden[0], stochastic=stochastic)
-    return MLPActor(hidden=tuple(hidden), stochastic=stochastic, frames=frames, obs_size=obs_size)
+def make_actor(agent_config, obs_size: int, stochastic: bool) -> nn.Module:
+    """The actor an agent config describes, for observations of `obs_size` floats: an LSTM, or an MLP
+    (reading agent.frames stacked observations); a Gaussian head when `stochastic` (SAC)."""
+    a = agent_config
+    if a.actor == "lstm":
+        return LSTMActor(units=a.actor_hidden[0], stochastic=stochastic)
+    return MLPActor(hidden=tuple(a.actor_hidden), stochastic=stochastic, frames=a.frames, obs_size=obs_size)
 
 
 def carry_features(carry) -> jax.Array:

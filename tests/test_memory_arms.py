@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_algorithms import _gauss_head, _q, _tanh_gauss   # the hand references of the agents' tests
 
 from docrl_jax.algorithms import make_agent, sac
 from docrl_jax.algorithms.common import split_batch
@@ -25,26 +26,6 @@ def _config(**agent):
                              "agent": {"algo": "sac", "actor": "mlp", "actor_hidden": [4], "critic_hidden": [5],
                                        "frames": FRAMES, **agent},
                              "replay": {"buffer_size": 100, "batch_size": B, "seq_len": 1, "burn_in": 0}})
-
-
-def _dense(p, x):
-    return x @ np.asarray(p["kernel"]) + np.asarray(p["bias"])
-
-
-def _mean(actor_params, x):
-    """The stochastic MLP actor's mean by hand on its (stacked) input x."""
-    p = actor_params["params"]
-    return _dense(p["head"]["mean"], np.maximum(_dense(p["dense_0"], x), 0.0))
-
-
-def _log_std(actor_params, x):
-    p = actor_params["params"]
-    return np.clip(_dense(p["head"]["log_std"], np.maximum(_dense(p["dense_0"], x), 0.0)), -20.0, 2.0)
-
-
-def _q(critic_params, x, a, i):
-    p = jax.tree.map(lambda v: np.asarray(v)[i], critic_params["params"]["q"])
-    return _dense(p["out"], np.maximum(_dense(p["dense_0"], np.concatenate([x, a], -1)), 0.0))[..., 0]
 
 
 def test_stacked_actor_reads_the_last_frames_and_starts_each_episode_from_zeros():
@@ -63,8 +44,8 @@ def test_stacked_actor_reads_the_last_frames_and_starts_each_episode_from_zeros(
         for b in range(B):
             first = max(k for k in range(t + 1) if reset[k, b])
             frames = [obs[k, b] if k >= first else np.zeros(OBS) for k in range(t - FRAMES + 1, t + 1)]
-            np.testing.assert_allclose(np.asarray(means)[t, b], _mean(params, np.concatenate(frames)),
-                                       rtol=1e-5, atol=1e-6)
+            mean, _ = _gauss_head(jax.tree.map(np.asarray, params), np.concatenate(frames))
+            np.testing.assert_allclose(np.asarray(means)[t, b], mean, rtol=1e-5, atol=1e-6)
 
 
 def test_sac_critics_that_see_the_carry_by_hand():
@@ -84,22 +65,18 @@ def test_sac_critics_that_see_the_carry_by_hand():
     loss, info = sac.critic_loss(state.critic, critic, agent.actor, state, split_batch(batch, 0), eps, c.agent,
                                  memory=True)
 
-    b = jax.tree.map(np.asarray, batch)
+    b, p = jax.tree.map(np.asarray, batch), jax.tree.map(np.asarray, state)
     s, a, r, s2, d = b["obs"][:, 0], b["action"][:, 0], b["reward"][:, 0], b["next_obs"][:, 0], b["terminated"][:, 0]
     past = b["carry"][0][:, 0]
     carry = np.concatenate([past, s], -1)[:, OBS:]          # the frames after reading s
     next_carry = np.concatenate([carry, s2], -1)[:, OBS:]   # ... and after reading s2
-    x2 = np.concatenate([carry, s2], -1)
-    u = _mean(state.actor, x2) + np.exp(_log_std(state.actor, x2)) * np.asarray(eps)[0]
-    a2 = np.tanh(u)
-    logp2 = np.sum(-0.5 * np.asarray(eps)[0] ** 2 - _log_std(state.actor, x2) - 0.5 * math.log(2 * math.pi)
-                   - np.log(1 - a2 ** 2 + 1e-6), -1)
+    a2, logp2 = _tanh_gauss(*_gauss_head(p.actor, np.concatenate([carry, s2], -1)), np.asarray(eps)[0])
     seen2 = np.concatenate([s2, next_carry], -1)
-    y = r + 0.99 * (1 - d) * (np.minimum(_q(state.critic_target, seen2, a2, 0), _q(state.critic_target, seen2, a2, 1))
+    y = r + 0.99 * (1 - d) * (np.minimum(_q(p.critic_target, seen2, a2, 0), _q(p.critic_target, seen2, a2, 1))
                               - 0.3 * logp2)
     seen = np.concatenate([s, carry], -1)
     np.testing.assert_allclose(float(info["target"]), y.mean(), rtol=1e-4)
-    np.testing.assert_allclose(float(loss), sum(np.mean((_q(state.critic, seen, a, i) - y) ** 2) for i in range(2)),
+    np.testing.assert_allclose(float(loss), sum(np.mean((_q(p.critic, seen, a, i) - y) ** 2) for i in range(2)),
                                rtol=1e-4)
     # The critics' input is obs + carry wide; without critic_carry it is the obs alone.
     assert state.critic["params"]["q"]["dense_0"]["kernel"].shape[1] == OBS + (FRAMES - 1) * OBS + 3

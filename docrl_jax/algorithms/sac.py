@@ -68,7 +68,7 @@ def alpha_loss(log_alpha, logp, target_entropy, mask):
 def make_sac(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
     obs_size = observation_size(config)
-    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, True, a_cfg.frames, obs_size)
+    actor = make_actor(a_cfg, obs_size, stochastic=True)
     critic = make_critic(a_cfg)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = alpha_tx = adam(1.0)

@@ -58,7 +58,7 @@ def make_td3(config: Config) -> Agent:
     a_cfg, memory = config.agent, config.agent.recurrent
     ddpg = a_cfg.algo == "ddpg"
     obs_size = observation_size(config)
-    actor = make_actor(a_cfg.actor, a_cfg.actor_hidden, False, a_cfg.frames, obs_size)
+    actor = make_actor(a_cfg, obs_size, stochastic=False)
     critic = make_critic(a_cfg)
     # adam(1.0): the learning rates are applied in apply_gradients from HParams (traceable in a sweep)
     actor_tx = critic_tx = adam(1.0)
