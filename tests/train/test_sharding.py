@@ -36,7 +36,9 @@ from docrl_jax.train import load_policy
 
 WORKER = Path(__file__).resolve().parent / "_sharding_worker.py"
 # "[Gloo] Rank 0 is connected to 3 peer ranks. Expected number of connected peer ranks is : 3", less its numbers.
-GLOO_LINE = ("[Gloo] Rank ", " is connected to ", " peer ranks. Expected number of connected peer ranks is : ")
+# Gloo's connection line as it writes it, in pieces that other threads' pieces can fall between
+# (seen: a "3" between " peer ranks. " and "Expected ...").
+GLOO_LINE = ("[Gloo] Rank ", " is connected to ", "Expected number of connected peer ranks is : ", " peer ranks. ")
 EXACT = {"env_steps", "seed", "train_episodes", "grad_updates"}
 
 
