@@ -87,9 +87,25 @@ def shutdown_distributed() -> None:
     lines. Does nothing in a single-process run."""
     if not jax.distributed.is_initialized():
         return
-    from jax.experimental import multihost_utils
-    multihost_utils.sync_global_devices("docrl_jax.sharding.shutdown_distributed")
+    barrier()
     jax.distributed.shutdown()
+
+
+def barrier() -> None:
+    """Waits for every process (nothing to wait for in a single-process run): every device of every
+    process takes part in one sum, and this process waits for each of its own devices' part.
+    `multihost_utils.sync_global_devices` is no such barrier: it reads one device's result per
+    process, and the other devices' parts of its collective (and of `SeedPlacement.get`'s) may still be
+    queued. A process that then exits drops them, and its peer waits for them for ever (seen: two CPU
+    processes, one hung at exit in Gloo's connect, 1 run in 12 on a loaded machine). A device launches
+    its collectives in order, so once this barrier's part is done, so are theirs."""
+    if jax.process_count() == 1:
+        return
+    mesh = Mesh(np.asarray(jax.devices(), dtype=object), ("all",))
+    ones = jax.make_array_from_process_local_data(NamedSharding(mesh, PartitionSpec("all")),
+                                                  np.ones(jax.local_device_count(), np.int32))
+    total = jax.jit(jax.numpy.sum, out_shardings=NamedSharding(mesh, PartitionSpec()))(ones)
+    jax.block_until_ready([shard.data for shard in total.addressable_shards])
 
 
 def is_primary() -> bool:

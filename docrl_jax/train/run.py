@@ -48,13 +48,6 @@ def check_run_dir(run_dir: Path, resume: bool) -> None:
                           f"first); start it again with --config and a fresh --run-dir")
 
 
-def _barrier(name: str) -> None:
-    """Waits for every process (a no-op in a single-process run)."""
-    if jax.process_count() > 1:
-        from jax.experimental import multihost_utils
-        multihost_utils.sync_global_devices(name)
-
-
 class _Display:
     """The progress bar with the latest statistics on a line of their own (they do not fit beside it),
     or with --no-progress one printed line per chunk (logs, batch jobs)."""
@@ -94,7 +87,7 @@ def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Pa
         if primary:
             aside = checkpoint.set_aside(mngr, [step for step, _ in restored.skipped])
             console.print(f"moved the skipped checkpoint(s) to {aside}")
-        _barrier("docrl_jax.train.run.set_aside")
+        sharding.barrier()
         mngr.reload()
     step, state, meta = restored.step, restored.state, restored.meta
     done_chunks = meta["chunk"]
@@ -154,7 +147,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     t_cfg = config.train
     placement = sharding.seed_placement(t_cfg)  # the device plan, resolved once for the whole run
     memory.check_memory(config, placement.devices)
-    _barrier("docrl_jax.train.run.run")  # every process has read the run directory before process 0 writes to it
+    sharding.barrier()  # every process has read the run directory before process 0 writes to it
     if placement.note:
         console.print(f"[yellow]note:[/] {placement.note}")
     if primary:

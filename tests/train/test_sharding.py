@@ -110,8 +110,7 @@ def test_the_command_line_ends_a_distributed_session_after_its_run(monkeypatch, 
     monkeypatch.setattr(train_run, "run", lambda *a, **k: calls.append("run") or cli.EXIT_INTERRUPTED)
     monkeypatch.setattr(jax.distributed, "is_initialized", lambda: "initialize" in calls)
     monkeypatch.setattr(jax.distributed, "shutdown", lambda: calls.append("shutdown"))
-    from jax.experimental import multihost_utils
-    monkeypatch.setattr(multihost_utils, "sync_global_devices", lambda name: calls.append("barrier"))
+    monkeypatch.setattr(sharding, "barrier", lambda: calls.append("barrier"))
     args = ["--config", "td3_lstm", "--run-dir", str(tmp_path / "run"), "--compile-cache", "off"]
     assert cli.main(["--distributed", *args]) == cli.EXIT_INTERRUPTED
     assert calls == ["initialize", "run", "barrier", "shutdown"]
