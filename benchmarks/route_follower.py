@@ -33,7 +33,7 @@ import numpy as np
 
 from docrl_jax.baselines import route
 from docrl_jax.envs import flyability, geometry, guidance, layouts
-from docrl_jax.evaluate import robustness, rollout, tank_sets
+from docrl_jax.evaluate import policies, robustness, rollout, tank_sets
 from docrl_jax.evaluate.tables import SHORT, summarize
 
 DIRECTIONS = ("air_to_water", "water_to_air")
@@ -178,11 +178,11 @@ def pilots(specs: list[str]) -> list[tuple[str, object, dict]]:
     for spec in specs:
         from docrl_jax import pretrained
         if spec in pretrained.PRETRAINED:
-            policy, _ = rollout.policy_for(None, name=spec)
+            policy, _ = policies.policy_for(None, name=spec)
             out.append((spec, policy, run_vehicle(None, spec)))
             continue
         run, _, index = spec.partition(":")
-        policy, name = rollout.policy_for(None, run, int(index or 0), which="final")   # as the tables before
+        policy, name = policies.policy_for(None, run, int(index or 0), which="final")   # as the tables before
         out.append((f"{name}_s{int(index or 0)}", policy, run_vehicle(run)))
     return out
 

@@ -76,7 +76,7 @@ def guided(policy: Policy) -> Policy:
     floats point at the aim of the trip's plan (`plan`) from the pose in `info`. The returned Policy's params
     are {"plan": one plan per trial, "policy": `policy`'s own params}: a rollout maps "plan" over trials and
     shares "policy" (PLAN_AXES); the evaluator's rollouts plan each trial from its initial state. Policies of
-    one act function (`rollout.policy_for` shares them per architecture) get one guided act: one compile."""
+    one act function (`policies.policy_for` shares them per architecture) get one guided act: one compile."""
     if id(policy.act) not in _GUIDED:
         def act(params, carry, obs, info, key):
             position, goal = info["position"], info["goal"]

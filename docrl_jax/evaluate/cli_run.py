@@ -15,7 +15,7 @@ import numpy as np
 
 from docrl_jax import pretrained, runs
 from docrl_jax.errors import RunDirError
-from docrl_jax.evaluate import rollout, tank_trials
+from docrl_jax.evaluate import policies, rollout, tank_trials
 from docrl_jax.evaluate.run_dirs import config_name, run_config, run_num_seeds, run_vehicle
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, NOMINAL_YAW, TrialSpec
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, markdown_table, trial_table, write_outputs
@@ -32,14 +32,14 @@ def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple
     """(policy, label) for --policy (a shipped policy or a baseline) or for one seed of the run directory
     `run`. Several run directories are labelled by their config's name, one by its folder's name."""
     if args.policy is not None:   # one BBA per env: the renderer's and benchmark's too
-        policy, label = rollout.policy_for(env, None, 0, None, args.bba_depth_phase, name=args.policy, guide=args.guide)
+        policy, label = policies.policy_for(env, None, 0, None, args.bba_depth_phase, name=args.policy, guide=args.guide)
         if args.policy in pretrained.PRETRAINED:
             print(f"{args.policy}: {policy.source}", flush=True)
         return policy, args.label or label
     policy = runs.load_policy(run, seed_index=seed_index, which=args.which)
     print(f"{Path(run).name}: {policy.source}", flush=True)
     name = config_name(run) if len(args.run) > 1 else Path(run).resolve().name
-    policy, label = rollout.steered(policy, runs.policy_label(name, policy.which), args.guide)
+    policy, label = policies.steered(policy, runs.policy_label(name, policy.which), args.guide)
     return policy, args.label or label
 
 

@@ -41,7 +41,7 @@ from typing import Sequence
 
 import numpy as np
 
-from docrl_jax.evaluate import rollout
+from docrl_jax.evaluate import policies, rollout
 # The trips' media, keys and runner live in rollout, where the tank trials fly them too.
 from docrl_jax.evaluate.rollout import MEDIA, trip_keys, trip_trials
 from docrl_jax.evaluate.protocol import NOMINAL_YAW
@@ -237,7 +237,7 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
             # The policy is built for the first env the tests fly (the BBA reads its parameters).
             own = any(t in cfg["tests"] for t in ("perturbations", "random_trips"))
             first_env = rollout.make_eval_env(cfg["scenarios"][0] if own else 0, steps, **host_kw)
-            policy, _ = rollout.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"],
+            policy, _ = policies.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"],
                                            name=method.shipped, guide=cfg.get("guide", False))
             if policy.source:
                 report(f"{method.label}: {Path(run).name + ': ' if run else ''}{policy.source}")

@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax import pretrained, runs
-from docrl_jax.evaluate import cli, robustness, rollout, run_dirs, tank_sets
+from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
 from docrl_jax.evaluate.robustness import ENVELOPE, PERTURBATIONS, TESTS, Method
@@ -219,7 +219,7 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
         m.label = label
     if args.guide and not labels:   # labels the command made say the methods fly guided
         for m in methods:
-            m.label = m.label and rollout.guided_label(m.label)
+            m.label = m.label and policies.guided_label(m.label)
     for m in methods:
         if m.label is None:
             raise UsageError(f"--run {' '.join(m.runs)}: the run directories hold different configs "

@@ -42,7 +42,7 @@ from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reas
 from docrl_jax.evaluate.cli import UsageError, check_guide
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
-from docrl_jax.evaluate.rollout import policy_for
+from docrl_jax.evaluate.policies import policy_for
 from docrl_jax.evaluate.tables import SHORT
 
 SUFFIXES = (".mp4", ".gif")

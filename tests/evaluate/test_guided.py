@@ -9,13 +9,13 @@ import sys
 import pytest
 
 from docrl_jax.baselines import route
-from docrl_jax.evaluate import rollout
+from docrl_jax.evaluate import policies
 
 
 def test_a_guided_policy_plans_per_trial_and_says_so():
-    policy, label = rollout.policy_for(None, name="sac_mlp_generalist", guide=True)
-    plain, plain_label = rollout.policy_for(None, name="sac_mlp_generalist")
-    assert label == rollout.guided_label(plain_label) != plain_label
+    policy, label = policies.policy_for(None, name="sac_mlp_generalist", guide=True)
+    plain, plain_label = policies.policy_for(None, name="sac_mlp_generalist")
+    assert label == policies.guided_label(plain_label) != plain_label
     assert policy.trial_params is not None and plain.trial_params is None
     assert policy.params["policy"] is not None and policy.params["plan"] is None
     assert policy.trial_axes == route.PLAN_AXES

@@ -71,7 +71,7 @@ def test_perturbation_reaches_the_env(sweep):
     assert aw["nominal"]["path_length_all_mean"] != aw["action_latency"]["path_length_all_mean"]
 
     host = rollout.make_eval_env(1, STEPS, **HOST)
-    from docrl_jax.evaluate.rollout import policy_for
+    from docrl_jax.evaluate.policies import policy_for
     policy, _ = policy_for(host)        # the command's BBA: its compiled rollout is reused
     start, goal = envs.eval_pair(1, "air_to_water")
     key = rollout.trial_key(0, 1, "air_to_water")

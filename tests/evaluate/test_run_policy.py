@@ -16,7 +16,7 @@ import pytest
 
 from docrl_jax import checkpoint, runs
 from docrl_jax.errors import RunDirError
-from docrl_jax.evaluate import cli, cli_run, robustness_cli, rollout, video
+from docrl_jax.evaluate import cli, cli_run, policies, robustness_cli, video
 from docrl_jax.export import cli as export_cli
 from docrl_jax.policy import RUN_POLICY_RULE
 
@@ -111,8 +111,8 @@ def test_labels_say_what_was_loaded(no_best, tmp_path):
     assert cli_run.load_policy_for(args, None, 0, str(TRAINED))[1] == "td3_lstm"
     args = cli.build_parser().parse_args(["--run", str(no_best)])
     assert cli_run.load_policy_for(args, None, 0, str(no_best))[1] == "no_best"
-    assert rollout.policy_for(None, str(TRAINED))[1] == "td3_lstm (best)"   # render's label
-    assert rollout.policy_for(None, str(no_best))[1] == "no_best"
+    assert policies.policy_for(None, str(TRAINED))[1] == "td3_lstm (best)"   # render's label
+    assert policies.policy_for(None, str(no_best))[1] == "no_best"
 
     def methods(*argv):
         parsed = robustness_cli.build_parser().parse_args(   # the cheapest test to check the settings of
