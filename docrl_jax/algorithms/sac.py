@@ -54,10 +54,10 @@ def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, 
     return critic_regression(q, y, seq.mask), {"q": masked_mean(q[0], seq.mask), "target": masked_mean(y, seq.mask)}
 
 
-def actor_loss(actor_params, actor, critic, critic_params, log_alpha, seq: SeqBatch, eps, memory, sees_carry=False):
+def actor_loss(actor_params, actor, critic, critic_params, log_alpha, seq: SeqBatch, eps, a_cfg, memory):
     (mean, log_std), carries_after = run_actor(actor, actor_params, seq, memory)
     a, logp = sample_action(mean, log_std, eps)
-    q = jnp.min(critic.apply(critic_params, critic_view(seq.obs, carries_after, sees_carry), a), axis=0)
+    q = jnp.min(critic.apply(critic_params, critic_view(seq.obs, carries_after, a_cfg.critic_carry), a), axis=0)
     return masked_mean(jnp.exp(log_alpha) * logp - q, seq.mask), logp
 
 
@@ -106,7 +106,7 @@ def make_sac(config: Config) -> Agent:
 
         def policy_step(s: AgentState):
             (a_loss, logp), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
-                s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, memory, a_cfg.critic_carry)
+                s.actor, actor, critic, s.critic, s.log_alpha, seq, eps_pi, a_cfg, memory)
             actor_params, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale, hp.actor_lr)
             al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, hp.target_entropy, seq.mask)
             log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha, lr=hp.alpha_lr)
