@@ -97,7 +97,7 @@ def barrier() -> None:
     `multihost_utils.sync_global_devices` is no such barrier: it reads one device's result per
     process, and the other devices' parts of its collective (and of `SeedPlacement.get`'s) may still be
     queued. A process that then exits drops them, and its peer waits for them for ever (seen: two CPU
-    processes, one hung at exit in Gloo's connect, 1 run in 12 on a loaded machine). A device launches
+    processes, one hung at exit in Gloo's connect, 1 run in 40 on a loaded machine). A device launches
     its collectives in order, so once this barrier's part is done, so are theirs."""
     if jax.process_count() == 1:
         return
