@@ -1,6 +1,6 @@
 """The hyperparameter sweep (docrl_jax.sweep) on CPU: the grid's refusals before compiling, the
 table's arithmetic, a 2-value grid end to end (table, figures, per-combination metrics), a
-1-combination sweep against a plain run, and each row of the 2-value program against separate runs."""
+1-combination sweep of 2 seeds against plain runs, and each row of the 2-value program against such sweeps."""
 
 from __future__ import annotations
 
@@ -117,7 +117,7 @@ def test_table_time_to_90_and_final_success(tmp_path):
 @functools.lru_cache(maxsize=None)
 def _sweep(*grid: str, seeds: int = 1) -> Path:
     """Run directory of a sweep of the easy config, one chunk (4,000 env steps) per row."""
-    d = tmp_dir("sweeps") / "_".join(g.replace("=", "-").replace(",", "+") for g in grid)
+    d = tmp_dir("sweeps") / ("_".join(g.replace("=", "-").replace(",", "+") for g in grid) + f"_seeds{seeds}")
     argv = ["--config", _easy_yaml(), "--seeds", str(seeds), "--set", "train.total_env_steps=4000",
             "--run-dir", str(d), "--compile-cache", "off"]
     for g in grid:
@@ -144,14 +144,22 @@ def _assert_close_rows(ours, theirs):
                 np.testing.assert_allclose(float(a[k]), float(v), rtol=1e-3, atol=1e-5, err_msg=k)
 
 
+def _seed_rows(rows, seed: int):
+    return [r for r in rows if r["seed"] == str(seed)]
+
+
 def test_one_combination_sweep_matches_a_plain_run():
-    """A 1-combination sweep (the easy config's own tau, traced) against docrl_jax.train.run.run of that config: the
-    same computation, but not bit-identical: XLA rewrites Adam's step around a constant learning
-    rate differently from a traced one (1 ulp in some weights per update; measured), and training
-    amplifies that like the float rounding of vmapped seeds."""
-    ours = _rows(_sweep("agent.tau=0.01") / "c00" / "metrics.csv")
-    assert [r["combination"] for r in ours] == ["c00"] * 2 and {r["agent.tau"] for r in ours} == {"0.01"}
-    _assert_close_rows(ours, _rows(finished_run(train__total_env_steps=4000) / "metrics.csv"))
+    """A 1-combination sweep of 2 seeds (the easy config's own tau, traced) against
+    docrl_jax.train.run.run of that config and each seed: the same computation, but not bit-identical:
+    XLA rewrites Adam's step around a constant learning rate differently from a traced one (1 ulp in
+    some weights per update; measured), and training amplifies that like the float rounding of vmapped
+    seeds. Its 2 rows (1 combination x 2 seeds) are the program of the 2-value grid below (2 x 1):
+    compiled once for both tests."""
+    ours = _rows(_sweep("agent.tau=0.01", seeds=2) / "c00" / "metrics.csv")
+    assert [r["combination"] for r in ours] == ["c00"] * 4 and {r["agent.tau"] for r in ours} == {"0.01"}
+    for seed in (0, 1):
+        plain = finished_run(train__total_env_steps=4000, train__seed=seed) / "metrics.csv"
+        _assert_close_rows(_seed_rows(ours, seed), _rows(plain))
 
 
 def test_two_value_grid_end_to_end_and_rows_match_separate_runs():
@@ -167,7 +175,7 @@ def test_two_value_grid_end_to_end_and_rows_match_separate_runs():
         assert {r["agent.tau"] for r in rows} == {tau} and {r["combination"] for r in rows} == {name}
         assert int(rows[-1]["grad_updates"]) == (4000 - 2000) // 16 * 2
         assert yaml.safe_load((d / name / "config.yaml").read_text())["agent"]["tau"] == float(tau)
-        # Each row of the 2-row (vmapped) program against a 1-combination sweep of its value.
-        _assert_close_rows(rows, _rows(_sweep(f"agent.tau={tau}") / "c00" / "metrics.csv"))
+        # Each row of the 2-row (vmapped) program against seed 0 of a 1-combination, 2-seed sweep of its value.
+        _assert_close_rows(rows, _seed_rows(_rows(_sweep(f"agent.tau={tau}", seeds=2) / "c00" / "metrics.csv"), 0))
     c00, c01 = (_rows(d / n / "metrics.csv")[-1] for n in ("c00", "c01"))
     assert c00["critic_loss"] != c01["critic_loss"]  # each row trained with its own tau
