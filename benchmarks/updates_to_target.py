@@ -2,7 +2,11 @@
 directions, read from the run's metrics.csv: a sample-efficiency figure that, unlike wall-clock time,
 many seeds can share one GPU for (`train.num_seeds=8` trains eight seeds vmapped in one program).
 
-    python benchmarks/updates_to_target.py RUN_DIR [RUN_DIR ...] [--target 0.9]
+    python benchmarks/updates_to_target.py RUN_DIR [RUN_DIR ...] [--target 0.9] [--late-from ENV_STEPS]
+
+With --late-from, a second table: how steady each run's evaluated policy is from that env step on
+(per seed: mean and standard deviation of the W-A success over those evaluations, its lowest value in
+either direction, the final W-A; means over seeds, the per-seed lows and finals listed).
 
 A seed that had not reached the target by the run's last evaluation is censored: it counts as
 "above the last evaluated step" (the median is then a lower bound when half or more are censored).
@@ -14,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 from collections import defaultdict
 
@@ -38,6 +43,31 @@ def per_seed(run_dir: str, target: float) -> tuple[dict, int, int]:
     return out, int(float(last["env_steps"])), int(float(last["grad_updates"]))
 
 
+def late(run_dir: str, from_steps: float) -> dict:
+    """{seed: (W-A successes, A-W successes)} of the evaluations at or after `from_steps` env steps."""
+    out = defaultdict(lambda: ([], []))
+    for r in read_rows(os.path.join(run_dir, "metrics.csv")):
+        wa, aw = r.get("success_water_to_air", ""), r.get("success_air_to_water", "")
+        if float(r["env_steps"]) >= from_steps and wa not in ("", "nan") and aw not in ("", "nan"):
+            out[int(r["seed"])][0].append(float(wa))
+            out[int(r["seed"])][1].append(float(aw))
+    return dict(sorted(out.items()))
+
+
+def late_table(run_dirs: list[str], from_steps: float) -> None:
+    print(f"\n| run | evaluations per seed from {from_steps / 1e6:.1f} M | W-A mean | W-A sd (mean over seeds) "
+          "| lowest of either direction, per seed | final W-A, per seed |")
+    print("|---|---|---|---|---|---|")
+    for run_dir in run_dirs:
+        seeds = late(run_dir, from_steps)
+        wa = [v[0] for v in seeds.values()]
+        print(f"| {os.path.basename(os.path.normpath(run_dir))} | {statistics.median(len(w) for w in wa):.0f} "
+              f"| {statistics.mean(statistics.mean(w) for w in wa):.3f} "
+              f"| {statistics.mean(statistics.pstdev(w) for w in wa):.3f} "
+              f"| {', '.join(f'{min(v[0] + v[1]):.2f}' for v in seeds.values())} "
+              f"| {', '.join(f'{w[-1]:.2f}' for w in wa)} |")
+
+
 def median_text(values: list[int], censored: int, last: int) -> str:
     """The median of the seeds' values with the censored seeds counted above `last`."""
     ranked = sorted(values) + [None] * censored
@@ -52,6 +82,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("run_dirs", nargs="+")
     ap.add_argument("--target", type=float, default=0.9)
+    ap.add_argument("--late-from", type=float, default=None, metavar="ENV_STEPS",
+                    help="also tabulate the evaluations from this env step on (steadiness late in the run)")
     args = ap.parse_args(argv)
     print(f"| run | seeds at {args.target:.0%} | env steps, per seed | median env steps | gradient updates, per seed "
           "| median updates |")
@@ -66,6 +98,8 @@ def main(argv=None) -> int:
         print(f"| {os.path.basename(os.path.normpath(run_dir))} | {len(hits)}/{len(seeds)} "
               f"| {', '.join(f'{s / 1e6:.1f} M' for s in steps)}{more} | {median_text(steps, censored, last_steps)} "
               f"| {', '.join(f'{u:,}' for u in updates)}{more} | {median_text(updates, censored, last_updates)} |")
+    if args.late_from is not None:
+        late_table(args.run_dirs, args.late_from)
     return 0
 
 

@@ -1,7 +1,8 @@
 """The pieces of the packaged learner recipe that the paper does not have, each against an
 independent reference: n-step TD targets (a plain Python loop over the window), the LayerNorm critic
 ensemble (NumPy), the learning-rate decay (Adam's first step by hand) and the Polyak-averaged policy
-(the average after one update, by hand; tau = 1 is the trained actor)."""
+(the average after one update, by hand; tau = 1 is the trained actor; the falling rate of
+policy_average_tau_start at several points of the run)."""
 
 from __future__ import annotations
 
@@ -128,10 +129,11 @@ def test_learning_rate_decays_linearly_and_scales_adams_step():
     np.testing.assert_allclose(np.asarray(new["w"]), [1.0 - 2.5e-3, -2.0 + 2.5e-3, 3.0], rtol=1e-5)
 
 
-def _agent_config(algo, tau_avg):
+def _agent_config(algo, tau_avg, tau_start=0.0):
     return config_from_dict({"env": {"num_envs": 2},
                              "agent": {"algo": algo, "actor": "mlp", "actor_hidden": [4], "critic_hidden": [5],
-                                       "policy_freq": 1, "policy_average_tau": tau_avg},
+                                       "policy_freq": 1, "policy_average_tau": tau_avg,
+                                       "policy_average_tau_start": tau_start},
                              "replay": {"buffer_size": 100, "batch_size": 6, "seq_len": 1, "burn_in": 0}})
 
 
@@ -159,6 +161,41 @@ def test_policy_average_is_a_polyak_average_of_the_trained_actor(algo):
         want = jax.tree.map(lambda avg, a: (1 - tau_avg) * avg + tau_avg * a, state.actor_average, new.actor)
         jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-6, atol=1e-7),
                      new.actor_average, want)
+
+
+@pytest.mark.parametrize("algo", ["td3", "sac"])
+def test_policy_average_rate_falls_geometrically_from_its_start(algo):
+    """With policy_average_tau_start 0.4 and policy_average_tau 0.1 the average's rate at progress p is
+    0.1 * 4 ** (1 - p): 0.4 at the start, 0.2 halfway, 0.1 at the end and after it."""
+    batch = _batch()
+    agent = make_agent(_agent_config(algo, 0.1, 0.4))
+    state = agent.init(jax.random.PRNGKey(0))
+    state = state.replace(actor_average=jax.tree.map(lambda x: x + 1.0, state.actor_average))
+    update = jax.jit(agent.update)
+    for progress, tau in ((0.0, 0.4), (0.5, 0.2), (1.0, 0.1), (1.5, 0.1)):
+        new, _ = update(state, batch, jax.random.PRNGKey(1), jnp.float32(progress))
+        want = jax.tree.map(lambda avg, a: (1 - tau) * avg + tau * a, state.actor_average, new.actor)
+        jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-5, atol=1e-6),
+                     new.actor_average, want)
+
+
+def test_policy_average_rate_traced_as_a_sweep_passes_it():
+    """A sweep's float32 rows: a constant rate uses the row's own 1 - tau bit for bit (as a plain run's
+    constants do), a falling one the schedule."""
+    from docrl_jax.algorithms.common import HParams, average_rate
+    rows = HParams.stack([HParams.from_agent_config(_agent_config("td3", 0.001).agent),
+                          HParams.from_agent_config(_agent_config("td3", 0.001, 0.01).agent)])
+    row = lambda i: jax.tree.map(lambda x: x[i], rows)  # noqa: E731
+    tau, keep = jax.jit(average_rate)(row(0), jnp.float32(0.3))
+    assert float(tau) == np.float32(0.001) and float(keep) == np.float32(0.999)
+    tau, keep = jax.jit(average_rate)(row(1), jnp.float32(0.5))
+    assert float(tau) == pytest.approx(0.001 * 10 ** 0.5, rel=1e-5) and float(keep) == pytest.approx(1 - float(tau))
+
+
+@pytest.mark.parametrize("start", [0.0005, 1.5, -0.1])
+def test_policy_average_tau_start_outside_tau_1_is_rejected(start):
+    with pytest.raises(ConfigError, match="policy_average_tau_start"):
+        _agent_config("td3", 0.001, start)
 
 
 @pytest.mark.parametrize("tau", [0.0, 1.5])

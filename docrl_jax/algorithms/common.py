@@ -50,6 +50,7 @@ class HParams:
     tau_keep: Any            # 1 - tau
     average_tau: Any         # policy_average_tau
     average_keep: Any        # 1 - policy_average_tau
+    average_rise: Any        # log(policy_average_tau_start / policy_average_tau); 0 = a constant rate
     policy_noise: Any
     noise_clip: Any
     ou_theta: Any
@@ -63,6 +64,8 @@ class HParams:
         return HParams(actor_lr=a.actor_lr, critic_lr=a.critic_lr, alpha_lr=a.alpha_lr, lr_decay=a.lr_end_scale - 1.0,
                        gamma=a.gamma, discounts=tuple(a.gamma ** k for k in range(a.n_step + 1)), tau=a.tau,
                        tau_keep=1.0 - a.tau, average_tau=a.policy_average_tau, average_keep=1.0 - a.policy_average_tau,
+                       average_rise=math.log(a.policy_average_tau_start / a.policy_average_tau)
+                       if a.policy_average_tau_start > 0 else 0.0,
                        policy_noise=a.policy_noise, noise_clip=a.noise_clip, ou_theta=a.ou_theta, ou_sigma=a.ou_sigma,
                        ou_sigma_delta=a.ou_sigma_final - a.ou_sigma, target_entropy=a.target_entropy,
                        log_init_alpha=math.log(a.init_alpha))
@@ -76,6 +79,7 @@ class HParams:
 
 # The config keys HParams carries (docrl_jax.sweep traces these).
 HPARAM_KEYS = ("actor_lr", "critic_lr", "alpha_lr", "lr_end_scale", "gamma", "tau", "policy_average_tau",
+               "policy_average_tau_start",
                "policy_noise", "noise_clip", "ou_theta", "ou_sigma", "ou_sigma_final", "target_entropy", "init_alpha")
 
 
@@ -214,6 +218,18 @@ def lr_scale(end_scale: float, progress: jax.Array) -> jax.Array:
 def lr_scale_delta(decay, progress: jax.Array) -> jax.Array:
     """`lr_scale` from decay = end_scale - 1 (HParams.lr_decay)."""
     return 1.0 + decay * jnp.clip(progress, 0.0, 1.0)
+
+
+def average_rate(hp: HParams, progress: jax.Array):
+    """(tau, 1 - tau) of the policy average's next step (agent.policy_average_tau_start): tau falls
+    geometrically from the start rate to policy_average_tau as env-step progress goes from 0 to 1, so
+    early in a run the policy the trainer evaluates and keeps is close to the improving actor, not
+    ~1/tau actor updates behind it. A constant rate is the config's exact constants."""
+    rise = hp.average_rise
+    if isinstance(rise, float) and rise == 0.0:   # the config's Python floats, no schedule
+        return hp.average_tau, hp.average_keep
+    tau = hp.average_tau * jnp.exp(rise * (1.0 - jnp.clip(progress, 0.0, 1.0)))
+    return tau, jnp.where(rise == 0.0, hp.average_keep, 1.0 - tau)   # (traced: exp(0) is exactly 1)
 
 
 def adam(lr: float) -> optax.GradientTransformation:

@@ -20,7 +20,7 @@ import math
 import jax
 import jax.numpy as jnp
 
-from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients,
+from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients, average_rate,
                                          critic_regression, critic_view, init_agent_state, lr_scale_delta, masked_mean,
                                          critic_step, delayed_policy_step, nstep_targets, run_actor, soft_update,
                                          split_batch)
@@ -111,7 +111,7 @@ def make_sac(config: Config) -> Agent:
             al_loss, al_grad = jax.value_and_grad(alpha_loss)(s.log_alpha, logp, hp.target_entropy, seq.mask)
             log_alpha, alpha_opt = apply_gradients(alpha_tx, al_grad, s.alpha_opt, s.log_alpha, lr=hp.alpha_lr)
             s = s.replace(actor=actor_params, actor_opt=actor_opt, log_alpha=log_alpha, alpha_opt=alpha_opt,
-                          actor_average=soft_update(s.actor_average, actor_params, hp.average_tau, hp.average_keep),
+                          actor_average=soft_update(s.actor_average, actor_params, *average_rate(hp, progress)),
                           critic_target=soft_update(s.critic_target, s.critic, hp.tau, hp.tau_keep))
             return s, (a_loss, al_loss)
 

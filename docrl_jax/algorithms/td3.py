@@ -17,7 +17,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients,
+from docrl_jax.algorithms.common import (Agent, AgentState, HParams, SeqBatch, adam, apply_gradients, average_rate,
                                          critic_regression, init_agent_state, lr_scale_delta, masked_mean,
                                          critic_step, delayed_policy_step, nstep_targets, run_actor, soft_update,
                                          split_batch)
@@ -95,7 +95,7 @@ def make_td3(config: Config) -> Agent:
             a_loss, a_grads = jax.value_and_grad(actor_loss)(s.actor, actor, critic, s.critic, seq, memory)
             new_actor, actor_opt = apply_gradients(actor_tx, a_grads, s.actor_opt, s.actor, scale, hp.actor_lr)
             s = s.replace(actor=new_actor, actor_opt=actor_opt,
-                          actor_average=soft_update(s.actor_average, new_actor, hp.average_tau, hp.average_keep),
+                          actor_average=soft_update(s.actor_average, new_actor, *average_rate(hp, progress)),
                           actor_target=soft_update(s.actor_target, new_actor, hp.tau, hp.tau_keep),
                           critic_target=soft_update(s.critic_target, s.critic, hp.tau, hp.tau_keep))
             return s, a_loss

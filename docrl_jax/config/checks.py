@@ -80,6 +80,9 @@ def validate(c: Config) -> Config:
         bad("agent.tau", a.tau, "must be in (0, 1]")
     if not 0.0 < a.policy_average_tau <= 1.0:
         bad("agent.policy_average_tau", a.policy_average_tau, "must be in (0, 1] (1 = no averaging)")
+    if a.policy_average_tau_start != 0.0 and not a.policy_average_tau <= a.policy_average_tau_start <= 1.0:
+        bad("agent.policy_average_tau_start", a.policy_average_tau_start,
+            f"must be 0 (a constant rate) or in [agent.policy_average_tau={a.policy_average_tau}, 1]")
     if a.ou_theta > 1.0:
         bad("agent.ou_theta", a.ou_theta, "must be in [0, 1] (mean reversion per step)")
     if a.init_alpha <= 0:

@@ -103,6 +103,12 @@ class AgentConfig:
         "average + tau actor. 1 = the trained actor itself (the paper's). Ours: "
         "0.001 averages over ~1,000 actor updates, which damps the swings of "
         "the trained actor between evaluations.")
+    policy_average_tau_start: float = documented(0.0,
+        "With policy_average_tau < 1: the average's rate at the run's start, falling "
+        "geometrically with env-step progress to policy_average_tau at total_env_steps. "
+        "The run's policy then follows the trained actor closely while it learns and is "
+        "averaged over ~1/policy_average_tau actor updates at the end. 0 = a constant "
+        "policy_average_tau. Ours: 0.01 in td3_lstm (docs/BENCHMARKS.md, \"Why the defaults\").")
 
     @property
     def recurrent(self) -> bool:
