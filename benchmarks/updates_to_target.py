@@ -26,12 +26,17 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from time_to_success import reached, read_rows  # noqa: E402
 
 
-def per_seed(run_dir: str, target: float) -> tuple[dict, int, int]:
-    """{seed: (env steps, gradient updates) at the first evaluation at target, or None}, and the
-    last evaluated env steps and updates."""
+def run_rows(run_dir: str) -> list[dict]:
+    """The rows of a run's metrics.csv (an error line if it has none)."""
     rows = read_rows(os.path.join(run_dir, "metrics.csv"))
     if not rows:
         raise SystemExit(f"{run_dir}: no metrics.csv rows")
+    return rows
+
+
+def per_seed(rows: list[dict], target: float) -> tuple[dict, int, int]:
+    """{seed: (env steps, gradient updates) at the first evaluation at target, or None}, and the
+    last evaluated env steps and updates, from a run's metrics.csv rows."""
     by_seed = defaultdict(list)
     for r in rows:
         by_seed[r["seed"]].append(r)
@@ -43,10 +48,10 @@ def per_seed(run_dir: str, target: float) -> tuple[dict, int, int]:
     return out, int(float(last["env_steps"])), int(float(last["grad_updates"]))
 
 
-def late(run_dir: str, from_steps: float) -> dict:
+def late(rows: list[dict], from_steps: float) -> dict:
     """{seed: (W-A successes, A-W successes)} of the evaluations at or after `from_steps` env steps."""
     out = defaultdict(lambda: ([], []))
-    for r in read_rows(os.path.join(run_dir, "metrics.csv")):
+    for r in rows:
         wa, aw = r.get("success_water_to_air", ""), r.get("success_air_to_water", "")
         if float(r["env_steps"]) >= from_steps and wa not in ("", "nan") and aw not in ("", "nan"):
             out[int(r["seed"])][0].append(float(wa))
@@ -54,12 +59,13 @@ def late(run_dir: str, from_steps: float) -> dict:
     return dict(sorted(out.items()))
 
 
-def late_table(run_dirs: list[str], from_steps: float) -> None:
+def late_table(runs: dict, from_steps: float) -> None:
+    """The late-steadiness table of {run directory: its metrics.csv rows}."""
     print(f"\n| run | evaluations per seed from {from_steps / 1e6:.1f} M | W-A mean | W-A sd (mean over seeds) "
           "| lowest of either direction, per seed | final W-A, per seed |")
     print("|---|---|---|---|---|---|")
-    for run_dir in run_dirs:
-        seeds = late(run_dir, from_steps)
+    for run_dir, rows in runs.items():
+        seeds = late(rows, from_steps)
         wa = [v[0] for v in seeds.values()]
         print(f"| {os.path.basename(os.path.normpath(run_dir))} | {statistics.median(len(w) for w in wa):.0f} "
               f"| {statistics.mean(statistics.mean(w) for w in wa):.3f} "
@@ -88,8 +94,9 @@ def main(argv=None) -> int:
     print(f"| run | seeds at {args.target:.0%} | env steps, per seed | median env steps | gradient updates, per seed "
           "| median updates |")
     print("|---|---|---|---|---|---|")
-    for run_dir in args.run_dirs:
-        seeds, last_steps, last_updates = per_seed(run_dir, args.target)
+    runs = {run_dir: run_rows(run_dir) for run_dir in args.run_dirs}
+    for run_dir, rows in runs.items():
+        seeds, last_steps, last_updates = per_seed(rows, args.target)
         hits = [v for v in seeds.values() if v is not None]
         censored = len(seeds) - len(hits)
         steps = sorted(h[0] for h in hits)
@@ -99,7 +106,7 @@ def main(argv=None) -> int:
               f"| {', '.join(f'{s / 1e6:.1f} M' for s in steps)}{more} | {median_text(steps, censored, last_steps)} "
               f"| {', '.join(f'{u:,}' for u in updates)}{more} | {median_text(updates, censored, last_updates)} |")
     if args.late_from is not None:
-        late_table(args.run_dirs, args.late_from)
+        late_table(runs, args.late_from)
     return 0
 
 
