@@ -3,7 +3,8 @@
     python3 benchmarks/every_seed_table.py round_every_seed.tar [--out every_seed.md]
     python3 benchmarks/every_seed_table.py DIR        (a folder holding pack/, or the pack folder itself)
 
-Per launch (seed): cold or warm (startup.json: programs compiled or loaded from the round's shared
+One table per side of the round (SIDES: sSEED is the new side, old_sSEED the old one, stopped at
+90 % without evaluations). Per launch (seed): cold or warm (startup.json: programs compiled or loaded from the round's shared
 cache, and the seconds that took); launch to 90 % both ways on the in-training paper pairs (metrics.csv's
 wall_time_s, seconds after the process started, of the first evaluation with both directions at the
 target: benchmarks/time_to_success.py's `reached`) and the env steps there; launch to end (gpu_lanes'
@@ -101,6 +102,7 @@ def evaluator_success(eval_dir: Path) -> dict | None:
 
 def launch(work: Path, run_dir: Path, ends: dict) -> dict:
     name = run_dir.name
+    side = name.rsplit("_", 1)[0] if "_" in name else "new"   # the round's names: sSEED, old_sSEED
     rows = read_rows(str(run_dir / "metrics.csv"))
     start = json.loads((run_dir / "startup.json").read_text()) if (run_dir / "startup.json").is_file() else {}
     hit = reached(rows, TARGET)
@@ -110,7 +112,7 @@ def launch(work: Path, run_dir: Path, ends: dict) -> dict:
         rate = chunk_steps_per_s(str(log)) if log.is_file() else None
     except statistics.StatisticsError:  # a run too short to have learning chunks
         rate = None
-    return {"name": name, "seed": int(float(last["seed"])) if last else None,
+    return {"name": name, "side": side, "seed": int(float(last["seed"])) if last else None,
             "cold": {"compiled": True, "loaded": False}.get(start.get("programs")),
             "compile_s": start.get("compile_s"), "first_chunk_s": start.get("launch_to_first_chunk_s"),
             "time_to_90_s": float(hit["wall_time_s"]) if hit else None,
@@ -148,7 +150,7 @@ def secs(x: float) -> str:
     return "not reached" if x == float("inf") else f"{x:.1f} s"
 
 
-def table(launches: list[dict], gpu: str = "") -> str:
+def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
     trials = {ev["trials"] for r in launches for ev in (r["eval_final"], r["eval_best"]) if ev}
     head = ["seed", "start (compile s)", "launch to 90 % (s)", "env steps at 90 %", "launch to end (s)",
             "learner (M env steps/s)", "in-training final A-W / W-A", "in-training best A-W / W-A (env steps)"]
@@ -166,7 +168,7 @@ def table(launches: list[dict], gpu: str = "") -> str:
         cells += [pair(r[f"eval_{w}"], s) for w in ("final", "best") for s in SCENARIO_COLUMNS]
         lines.append("| " + " | ".join(cells) + " |")
     out = [f"# Every seed, every time: {len(launches)} launches of `python -m docrl_jax.train --config td3_lstm`"
-           + (f" ({gpu})" if gpu else ""), "", *lines, ""]
+           + (f", side {side}" if side != "new" else "") + (f" ({gpu})" if gpu else ""), "", *lines, ""]
     for kind, rows in (("warm", [r for r in launches if r["cold"] is False]),
                        ("cold", [r for r in launches if r["cold"]]), ("all", launches)):
         if not rows:
@@ -184,6 +186,8 @@ def table(launches: list[dict], gpu: str = "") -> str:
     for w in ("final", "best"):
         evs = [r[f"eval_{w}"] for r in launches]
         done = [e for e in evs if e is not None]
+        if not done:
+            continue
         bar = dict(GOAL)
         s2 = sum(all(e.get((2, d), 0) >= bar[2] for d in DIRS) for e in done)
         s13 = sum(all(e.get((s, d), 0) >= bar[s] for s in (1, 3) for d in DIRS) for e in done)
@@ -216,7 +220,8 @@ def main(argv=None) -> int:
         cards = (work / "gpu.txt").read_text().splitlines()[1:] if (work / "gpu.txt").is_file() else []
         cards = [c for c in cards if not c.startswith("jax ")]   # nvidia-smi's lines, one per GPU
         gpu = f"{cards[0]} x{len(cards)}" if cards else ""
-    text = table(launches, gpu)
+    sides = sorted({r["side"] for r in launches}, key=lambda x: (x != "new", x))
+    text = "\n".join(table([r for r in launches if r["side"] == side], gpu, side) for side in sides)
     print(text, end="")
     if args.out:
         Path(args.out).write_text(text)

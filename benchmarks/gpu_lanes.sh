@@ -6,11 +6,13 @@
 # the host's GPUs, several lanes on one GPU sharing its memory) and defines
 # `lane N`, which calls, one after the other:
 #   train NAME LABEL TRAIN_ARGS...   python -m docrl_jax.train TRAIN_ARGS into runs/NAME, packed policy-only
+#   target NAME LABEL SEED ARGS...   the same launch watched by benchmarks/time_to_success.py (ARGS are its
+#     own: --config, --set) and stopped at 90 % success both ways: a time to 90 % without the run's end
 #   evaluate NAME LABEL RUN_DIRS... -- ROBUSTNESS_ARGS...   python -m docrl_jax.robustness into eval/NAME
 #   evaluator NAME LABEL RUN_DIRS... -- EVALUATE_ARGS...    python -m docrl_jax.evaluate (the paper's protocol)
 #     into eval/NAME, without figures; packed without the trajectories (.npz) and with the training log
 #     of each run evaluated; its compiled trials are kept in JAX's cache of the round (eval_cache)
-# The first call installs the carried wheels (.whl), copies the code aside and starts every lane in its
+# The first call installs the carried wheels (WHEELS, default .whl; a slimmer copy keeps the carry under its limit), copies the code aside and starts every lane in its
 # own process session; each later call only waits. Every call waits up to DEADLINE_S (default 540),
 # prints the lanes' times, the logs' last lines, the robustness tables and the evaluator's successes, and
 # copies the packed results (one archive per launch and per evaluation) to $OUT.
@@ -20,7 +22,7 @@ R=/tmp/round_$(basename "$round" .sh); mkdir -p $R/runs $R/eval $R/pack
 source "$round"
 if [ ! -e $R/started ]; then
   touch $R/started
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site ${WHEELS:-.whl}/*.whl
   rm -rf $R/wt && mkdir $R/wt && cp -r docrl_jax assets configs benchmarks $R/wt/
   [ -d .jobs/old_runs ] && cp -r .jobs/old_runs $R/old_runs
   nvidia-smi --query-gpu=name,driver_version --format=csv > $R/pack/gpu.txt
@@ -36,6 +38,14 @@ train() { name=\$1 label=\$2; shift 2
   python3 -m docrl_jax.train "\$@" --set name=\$name --no-progress --run-dir \$R/runs/\$name > \$R/\$name.log 2>&1
   echo "\$name train rc=\$? \$(date +%s)" >> \$R/times
   mkdir -p \$R/one_\$name && cp -r \$R/runs/\$name \$R/one_\$name/ && bash benchmarks/pack_runs.sh \$R/one_\$name \$R/pack/runs_\$name.tgz; }
+target() { name=\$1 label=\$2 seed=\$3; shift 3
+  echo "\$name train start \$(date +%s)" >> \$R/times
+  python3 benchmarks/time_to_success.py --seeds \$seed --compile-cache default --budget-s 150 --run-root \$R/tts \\
+    --tag \$name --out \$R/tts "\$@" > \$R/tts_\$name.log 2>&1
+  echo "\$name train rc=\$? \$(date +%s)" >> \$R/times
+  cp \$R/tts/time_to_success_\${name}_seed\$seed.log \$R/\$name.log
+  mkdir -p \$R/one_\$name && cp -r \$R/tts/\${name}_seed\$seed \$R/one_\$name/\$name &&
+    bash benchmarks/pack_runs.sh \$R/one_\$name \$R/pack/runs_\$name.tgz; }
 evaluate() { name=\$1 label=\$2; shift 2; runs=()
   while [ "\$1" != "--" ]; do runs+=(--run "\$1"); shift; done; shift
   echo "\$name eval start \$(date +%s)" >> \$R/times

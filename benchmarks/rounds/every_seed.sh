@@ -9,14 +9,26 @@
 #   bash benchmarks/gpu_lanes.sh benchmarks/rounds/every_seed.sh [DEADLINE_S]
 #   python3 benchmarks/every_seed_table.py round_every_seed.tar        (here, the table)
 # gpu_lanes' train adds --set name=NAME (a label; no program or result depends on it) and --no-progress.
+# Old beside new on one host: SIDES="new old" (OLD_ARGS: the old side's overrides, e.g. --set
+# agent.policy_average_tau_start=0) gives each seed an old launch too, stopped at 90 % (gpu_lanes'
+# `target`: a time to 90 % without an end or evaluations), named old_sSEED and run before or after the
+# new one in turn, so neither side always goes first. LANES sets the lanes (N lanes: seeds 4701+lane, +N, ...).
 # A CPU rehearsal shortens it: EXTRA (more train arguments, empty in the round), TRIALS, LANES.
 LANES=${LANES:-"0 1 2 3"}
 export DOCRL_JAX_COMPILE_CACHE=$R/cache
 EVAL="--trials ${TRIALS:-100} --scenarios 1,2,3"
+new_side() {
+  train s$1 "td3_lstm seed $1" --config td3_lstm --set train.seed=$1 ${EXTRA:-}
+  evaluator s${1}_final "td3_lstm seed $1 final" $R/runs/s$1 -- --which final $EVAL
+  evaluator s${1}_best "td3_lstm seed $1 best" $R/runs/s$1 -- --which best $EVAL
+}
+old_side() { target old_s$1 "td3_lstm seed $1 old" $1 --config td3_lstm ${OLD_ARGS:-} ${EXTRA:-}; }
 lane() {
-  for ((seed = 4701 + $1; seed <= 4710; seed += 4)); do
-    train s$seed "td3_lstm seed $seed" --config td3_lstm --set train.seed=$seed ${EXTRA:-}
-    evaluator s${seed}_final "td3_lstm seed $seed final" $R/runs/s$seed -- --which final $EVAL
-    evaluator s${seed}_best "td3_lstm seed $seed best" $R/runs/s$seed -- --which best $EVAL
+  local lanes=$(echo $LANES | wc -w) turn=0
+  for ((seed = 4701 + $1; seed <= 4710; seed += lanes)); do
+    case " ${SIDES:-new} " in
+      *" old "*) if ((turn++ % 2)); then old_side $seed; new_side $seed; else new_side $seed; old_side $seed; fi;;
+      *) new_side $seed;;
+    esac
   done
 }
