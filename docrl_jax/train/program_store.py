@@ -46,7 +46,7 @@ import tempfile
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import jax
 import numpy as np
@@ -341,13 +341,13 @@ def _listen() -> None:
     jax.monitoring.register_event_listener(_on_event)
 
 
-def compile_lowered(lower: Callable[[], jax.stages.Lowered], platform: str) -> tuple[jax.stages.Compiled, bool]:
-    """`lower().compile()`, and whether the executable may be stored. On the CPU only one the
+def compile_lowered(lowered: jax.stages.Lowered, platform: str) -> tuple[jax.stages.Compiled, bool]:
+    """`lowered.compile()`, and whether the executable may be stored. On the CPU only one the
     compiler built in this process may: XLA's CPU executable, once loaded from JAX's persistent
     cache, serialises without some of its functions and would fail when loaded again."""
     _listen()
     _thread.cache_hit = False
-    compiled = lower().compile()
+    compiled = lowered.compile()
     return compiled, not (platform == "cpu" and _thread.cache_hit)
 
 

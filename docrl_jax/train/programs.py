@@ -94,22 +94,27 @@ def _load(store, names: dict, devices) -> dict | None:
 
 
 def _compile(config: Config, devices: tuple, traced: bool, eval_key) -> tuple[dict, list]:
-    """init, chunk, evaluate (and eval_starts) traced and compiled, in threads (evaluate reused from the
-    memo), and the names of those the store may keep (program_store.compile_lowered)."""
+    """init, chunk, evaluate (and eval_starts) lowered in turn and compiled in threads (evaluate reused
+    from the memo), and the names of those the store may keep (program_store.compile_lowered)."""
     init, chunk, evaluate, eval_starts = _jitted(config, devices, traced)
     n = config.train.num_seeds
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)
     hp = (hparams_shape(n, config),) if traced else ()
     state_shape = jax.eval_shape(init, keys, total, *hp)
-    lowerings = {"init": lambda: init.lower(keys, total, *hp), "chunk": lambda: chunk.lower(state_shape, *hp)}
+    # Tracing and lowering are Python, one program at a time whatever the threads; XLA compiles without
+    # Python's lock. So each program is lowered in turn, the chunk (the longest compile) first, and
+    # compiles in its thread while the next ones are lowered.
+    lowerings = {"chunk": lambda: chunk.lower(state_shape, *hp), "init": lambda: init.lower(keys, total, *hp)}
     if eval_key not in _COMPILED:
         lowerings["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys)
     if eval_starts is not None:
         lowerings["eval_starts"] = lambda: eval_starts.lower(keys)
     with ThreadPoolExecutor(len(lowerings)) as pool:
-        done = {name: pool.submit(program_store.compile_lowered, lower, devices[0].platform)
-                for name, lower in lowerings.items()}
+        done = {}
+        for name, lower in lowerings.items():
+            lowered = lower()
+            done[name] = pool.submit(program_store.compile_lowered, lowered, devices[0].platform)
         compiled = {name: f.result() for name, f in done.items()}
     return ({"evaluate": _COMPILED.get(eval_key), **{name: c for name, (c, _) in compiled.items()}},
             [name for name, (_, ok) in compiled.items() if ok])
