@@ -12,7 +12,8 @@
 #   evaluator NAME LABEL RUN_DIRS... -- EVALUATE_ARGS...    python -m docrl_jax.evaluate (the paper's protocol)
 #     into eval/NAME, without figures; packed without the trajectories (.npz) and with the training log
 #     of each run evaluated; its compiled trials are kept in JAX's cache of the round (eval_cache)
-# The first call installs the carried wheels (WHEELS, default .whl; a slimmer copy keeps the carry under its limit), copies the code aside and starts every lane in its
+# The first call installs the carried wheels (WHEELS, default .whl; with the tracked tree grown past ~30 MB,
+# carry .whl_gpu from benchmarks/slim_wheels.py instead: the carry limit is 64 MiB), copies the code aside and starts every lane in its
 # own process session; each later call only waits. Every call waits up to DEADLINE_S (default 540),
 # prints the lanes' times, the logs' last lines, the robustness tables and the evaluator's successes, and
 # copies the packed results (one archive per launch and per evaluation) to $OUT.

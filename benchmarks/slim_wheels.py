@@ -1,0 +1,56 @@
+"""The carried wheels (.whl, from ../shared/device/get-wheels.sh) slimmed into .whl_gpu for the GPU machine,
+whose carried tree (tracked files and the wheels) must stay under 64 MiB: mujoco's wheel without
+`mujoco/experimental` and the Filament renderer (`mujoco/_render_filament*`), which neither training nor
+evaluation imports (rendering uses EGL); every other wheel copied as it is. pip installs the slimmed
+wheel with --no-deps as the device README says (its RECORD still names the dropped files; pip does not
+check them).
+
+    python3 benchmarks/slim_wheels.py [--src .whl] [--out .whl_gpu]
+then carry .whl_gpu and install WHEELS=.whl_gpu (benchmarks/gpu_lanes.sh) or `pip install ... .whl_gpu/*.whl`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import zipfile
+from pathlib import Path
+
+DROPPED = ("mujoco/experimental/", "mujoco/_render_filament")
+
+
+def slim(src: Path, out: Path) -> int:
+    """Copies `src` to `out` without the DROPPED entries; returns how many it dropped."""
+    dropped = 0
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            if item.filename.startswith(DROPPED):
+                dropped += 1
+                continue
+            zout.writestr(item, zin.read(item.filename))
+    return dropped
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--src", default=".whl")
+    ap.add_argument("--out", default=".whl_gpu")
+    args = ap.parse_args(argv)
+    src, out = Path(args.src), Path(args.out)
+    wheels = sorted(src.glob("*.whl"))
+    if not wheels:
+        ap.exit(2, f"slim_wheels.py: error: no wheels in {src} (bash ../shared/device/get-wheels.sh makes them)\n")
+    out.mkdir(exist_ok=True)
+    for wheel in wheels:
+        if wheel.name.startswith("mujoco-"):
+            print(f"{wheel.name}: {slim(wheel, out / wheel.name)} files dropped")
+        else:
+            shutil.copy2(wheel, out / wheel.name)
+    total = sum(p.stat().st_size for p in out.glob("*.whl"))
+    print(f"{out}: {len(wheels)} wheels, {total / 2**20:.1f} MiB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
