@@ -89,8 +89,12 @@ EASY_TRAINER = ("tests/train/test_train.py", "tests/train/test_run_safety.py", "
 # Level 1 (JAX's default here). The whole suite on 2 cores with -n 2: 1,062 s with only six env files
 # FAST; 919 s with every file FAST but test_learning.py, where the trainer unit took 103 s and the
 # structures 38 s more than at level 1 (and test_train's vmapped-seeds losses left its 1e-3 tolerance);
-# 900 s with these at level 1.
-LEVEL1_TESTS = (*EASY_TRAINER, "tests/train/test_learning.py", "tests/envs/test_structures.py")
+# 900 s with these at level 1. Alone, file by file: test_eval_alongside.py (a run of 12 chunks, stopped and
+# resumed) 111 -> 58 s at level 1, test_robustness.py 71 -> 53 s; no gain (or a loss) for test_env_contract,
+# test_adapters, test_evaluate + test_video, test_physics, test_procedural, test_export_parity,
+# test_program_constants, test_route_follower.
+LEVEL1_TESTS = (*EASY_TRAINER, "tests/train/test_learning.py", "tests/envs/test_structures.py",
+                "tests/train/test_eval_alongside.py", "tests/evaluate/test_robustness.py")
 HEAVIEST_FIRST = (
     EASY_TRAINER,
     ("tests/train/test_learning.py",),   # its other test: the procedural tanks' programs, then 160k steps
