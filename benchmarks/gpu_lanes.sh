@@ -34,19 +34,19 @@ R=$R; cd \$R/wt; export PYTHONPATH=/tmp/site:\$R/wt
 # Lane N runs on GPU N mod the GPUs; lanes sharing a GPU split its memory (XLA would take 75 % each).
 gpus=\$(nvidia-smi -L | wc -l); export CUDA_VISIBLE_DEVICES=\$(( \$1 % gpus ))
 [ \$(echo $LANES | wc -w) -gt \$gpus ] && export XLA_PYTHON_CLIENT_MEM_FRACTION=0.45
+pack_run() { mkdir -p \$R/one_\$1 && cp -r \$2 \$R/one_\$1/\$1 && bash benchmarks/pack_runs.sh \$R/one_\$1 \$R/pack/runs_\$1.tgz; }  # NAME RUN_DIR
 train() { name=\$1 label=\$2; shift 2
   echo "\$name train start \$(date +%s)" >> \$R/times
   python3 -m docrl_jax.train "\$@" --set name=\$name --no-progress --run-dir \$R/runs/\$name > \$R/\$name.log 2>&1
   echo "\$name train rc=\$? \$(date +%s)" >> \$R/times
-  mkdir -p \$R/one_\$name && cp -r \$R/runs/\$name \$R/one_\$name/ && bash benchmarks/pack_runs.sh \$R/one_\$name \$R/pack/runs_\$name.tgz; }
+  pack_run \$name \$R/runs/\$name; }
 target() { name=\$1 label=\$2 seed=\$3; shift 3
   echo "\$name train start \$(date +%s)" >> \$R/times
   python3 benchmarks/time_to_success.py --seeds \$seed --compile-cache default --budget-s 150 --run-root \$R/tts \\
     --tag \$name --out \$R/tts "\$@" > \$R/tts_\$name.log 2>&1
   echo "\$name train rc=\$? \$(date +%s)" >> \$R/times
   cp \$R/tts/time_to_success_\${name}_seed\$seed.log \$R/\$name.log
-  mkdir -p \$R/one_\$name && cp -r \$R/tts/\${name}_seed\$seed \$R/one_\$name/\$name &&
-    bash benchmarks/pack_runs.sh \$R/one_\$name \$R/pack/runs_\$name.tgz; }
+  pack_run \$name \$R/tts/\${name}_seed\$seed; }
 evaluate() { name=\$1 label=\$2; shift 2; runs=()
   while [ "\$1" != "--" ]; do runs+=(--run "\$1"); shift; done; shift
   echo "\$name eval start \$(date +%s)" >> \$R/times
