@@ -6,7 +6,8 @@ The reference is the evaluation program (docrl_jax.train.evaluation.evaluate), w
 env (episodes end at arrival) in a while loop of its own; the lanes run in the training env under
 auto-reset. A trained policy (tests/data/trained) gives successes and a collision, the untrained one
 collisions, so the outcomes compared are not all alike. No gradient updates (updates_per_step 0):
-the policies stay as given, and the programs compile in ~30 s on 2 CPU cores."""
+the policies stay as given, and the programs compile in ~30 s on 2 CPU cores. The fixture also records
+the order in which they reach XLA's compiler (the chunk first)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,8 @@ from docrl_jax.config import load_config
 from docrl_jax.runs import load_policy
 from docrl_jax.train.run import run
 from docrl_jax.train.evaluation import eval_keys
+from docrl_jax.train import program_store
+from docrl_jax.train.program_store import compile_lowered
 from docrl_jax.train.programs import compile_programs
 
 TRAINED = Path(__file__).resolve().parents[1] / "data" / "trained" / "td3_lstm"
@@ -34,14 +37,21 @@ SETS = ["env.num_envs=4", "train.updates_per_step=0", "train.eval_episodes=12", 
 @pytest.fixture(scope="module")
 def setup():
     config = load_config("td3_lstm", SETS)
-    programs, _ = compile_programs(config)
+    handed = []   # what programs._compile handed to XLA's compile, in order
+
+    def spy(lowered, platform):
+        handed.append(lowered)
+        return compile_lowered(lowered, platform)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(program_store, "compile_lowered", spy)
+        programs, _ = compile_programs(config)
 
     def fresh():  # a new runner state (a chunk donates the one it is given)
         return programs.init(jnp.stack([jax.random.PRNGKey(0)]), jnp.int32(config.train.total_env_steps))
 
     policies = {"trained": jax.tree.map(lambda x: jnp.asarray(x)[None], load_policy(TRAINED).params),
                 "untrained": jax.tree.map(jnp.copy, fresh().agent.actor_average)}
-    return programs, fresh, policies
+    return programs, fresh, policies, handed
 
 
 def _alongside(programs, state, params, key, swap_to=None):
@@ -69,7 +79,7 @@ def _assert_same(lanes: dict, program: dict):
 
 
 def test_lanes_give_the_evaluation_programs_results(setup):
-    programs, fresh, policies = setup
+    programs, fresh, policies, _ = setup
     state, key = fresh(), eval_keys([0], 7)
     results = {}
     for name, params in policies.items():
@@ -88,11 +98,22 @@ def test_lanes_give_the_evaluation_programs_results(setup):
 
 def test_lanes_keep_the_policy_they_began_with(setup):
     """The run's policy changes while an evaluation runs (it learns); the lanes keep their copy."""
-    programs, fresh, policies = setup
+    programs, fresh, policies, _ = setup
     key = eval_keys([0], 9)
     _, lanes = _alongside(programs, fresh(), policies["trained"], key, swap_to=policies["untrained"])
     _assert_same(lanes, jax.device_get(programs.evaluate(policies["trained"], key)))
     assert lanes["success_rate"][0] >= 0.9
+
+
+def test_the_chunk_is_lowered_and_handed_to_the_compiler_first(setup):
+    """programs._compile hands XLA each program as soon as it is lowered, the training chunk (the longest
+    compile) first, so it compiles while the rest are lowered; init and the lanes' first states follow
+    (and the evaluation, unless this process had compiled it)."""
+    programs, _, _, handed = setup
+    assert all(isinstance(lowered, jax.stages.Lowered) for lowered in handed)
+    takes_the_state = [jax.tree.structure(lowered.args_info[0][0]) == jax.tree.structure(programs.state_shape)
+                       for lowered in handed]
+    assert takes_the_state[0] and not any(takes_the_state[1:]) and len(handed) in (3, 4)
 
 
 def _rows(run_dir: Path) -> list[dict]:
