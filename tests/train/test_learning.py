@@ -29,6 +29,7 @@ from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.programs import compile_programs
 
 STEPS = 160_000
+PROCEDURAL_STEPS = 128_000
 MARGIN = 0.5
 # packaged td3_lstm (configs/td3_lstm.yaml): n-step targets (5 there; here the trained steps per sequence,
 # seq_len 4 - burn_in 2), LayerNorm critics, rates 2e-3
@@ -62,11 +63,15 @@ def test_td3_lstm_learns_in_tiny_procedural_tanks_from_a_level_pool_under_random
     # of 16 flyable levels sampled by learnability, 2 replaced every chunk, with the route reward on
     # (levels.*: docrl_jax/envs/curriculum.py), and a randomised plant (motor lag, air thrust, one step of
     # observation latency): the pool, its refreshes inside the program and the randomisation must leave
-    # the task learnable. The evaluation's episodes draw their own layouts (the env's generator).
+    # the task learnable. The evaluation's episodes draw their own layouts (the env's generator). With
+    # LEVERS, on 2 cores of the AMD EPYC CPU: 0.86 / 0.92 / 0.94 after 96k / 128k / 160k env steps of a 160k
+    # run, 0.91 at the end of this 128k one; untrained 0-0.02.
     raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in EASY.items()}
     raw["env"].update({"scenario": 0, "layout_boxes": [0, 1], "layout_capsules": [0, 1], "layout_beam_fraction": 0.0,
                        "dr_motor_tau_scale": [1.0, 2.0], "dr_thrust_air_scale": [0.9, 1.1], "dr_obs_latency": [0, 1]})
-    raw["train"].update({"total_env_steps": STEPS, "eval_every": STEPS, "checkpoint_every": STEPS, "log_every": 16000})
+    raw["train"].update({"total_env_steps": PROCEDURAL_STEPS, "eval_every": PROCEDURAL_STEPS,
+                         "checkpoint_every": PROCEDURAL_STEPS, "log_every": 16000})
+    raw["agent"].update({k.split("__")[1]: v for k, v in LEVERS.items()})
     # A small pool: on a CPU, checking a level (its grids and route fields) costs about half a second.
     raw["levels"] = {"sampler": "learnability", "capacity": 16, "refresh": 2, "route_reward": 1.0}
     config = config_from_dict(raw)
@@ -75,5 +80,5 @@ def test_td3_lstm_learns_in_tiny_procedural_tanks_from_a_level_pool_under_random
     with open(run_dir / "metrics.csv", newline="") as fh:
         trained = float(list(csv.DictReader(fh))[-1]["success_rate"])
     untrained = _untrained_success(config)
-    print(f"procedural: success after {STEPS} env steps {trained:.3f}; untrained {untrained:.3f}")
+    print(f"procedural: success after {PROCEDURAL_STEPS} env steps {trained:.3f}; untrained {untrained:.3f}")
     assert trained >= untrained + MARGIN, (trained, untrained)
