@@ -144,6 +144,9 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     # startup.json: seconds after launch at each step of the start (the command line's imports and
     # config before `run`), and whether the programs were compiled or loaded
     startup = {"launch_to_run_s": round(time.time() - launch_time, 2)}
+    # The command line checked the directory before its imports; a caller from Python gets the same check
+    # here, before anything is written (a new run would overwrite a run's config and metrics).
+    check_run_dir(run_dir, resume)
     t_cfg = config.train
     placement = sharding.seed_placement(t_cfg)  # the device plan, resolved once for the whole run
     memory.check_memory(config, placement.devices)

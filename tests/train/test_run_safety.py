@@ -286,6 +286,11 @@ def test_a_directory_holding_a_run_without_checkpoint_is_not_overwritten(tmp_pat
         assert cli.main(["--config", "sac_lstm", "--run-dir", str(d), "--compile-cache", "off"]) == cli.EXIT_CONFIG
     assert re.search(r"already holds a run.*--resume.*fresh --run-dir", console.file.getvalue())
     assert (d / "config.yaml").read_text() == "name: first\n" and (d / "metrics.csv").read_text() == "env_steps\n0\n"
+    # the same from Python: `run` refuses before it writes anything (it once rewrote the metrics)
+    console, out = _console()
+    assert train_run.run(easy_config(), d, console=console, show_progress=False) == cli.EXIT_CONFIG
+    assert re.search(r"already holds a run", out.getvalue())
+    assert (d / "config.yaml").read_text() == "name: first\n" and (d / "metrics.csv").read_text() == "env_steps\n0\n"
     args = cli.build_parser().parse_args(["--run-dir", str(d), "--resume"])
     with pytest.raises(RunDirError, match="has no checkpoint to resume from"):
         cli._resolve(args)
