@@ -9,6 +9,7 @@ The task is easy on purpose: empty tank, goals 1-2 m away in air, dense progress
 
 from __future__ import annotations
 
+import copy
 import functools
 import tempfile
 from pathlib import Path
@@ -26,13 +27,19 @@ EASY = {
 }
 
 
-def easy_config(**overrides):
-    """EASY with overrides given as section__key=value (e.g. train__seed=1)."""
-    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in EASY.items()}
+def easy_raw(**overrides) -> dict:
+    """The raw (unloaded) EASY with overrides given as section__key=value (e.g. train__seed=1), for tests
+    that add to it before loading. A deep copy: callers may change it without touching EASY."""
+    raw = copy.deepcopy(EASY)
     for key, value in overrides.items():
         sec, name = key.split("__")
         raw[sec][name] = value
-    return config_from_dict(raw)
+    return raw
+
+
+def easy_config(**overrides):
+    """easy_raw(**overrides), loaded."""
+    return config_from_dict(easy_raw(**overrides))
 
 
 _TMP = Path(tempfile.mkdtemp(prefix="docrl_trainer_tests_"))

@@ -19,7 +19,7 @@ import csv
 
 import jax
 import jax.numpy as jnp
-from _trainer_common import EASY, easy_config, finished_run, tmp_dir
+from _trainer_common import easy_config, easy_raw, finished_run, tmp_dir
 
 from docrl_jax.config import config_from_dict
 from docrl_jax.train.run import run
@@ -66,12 +66,12 @@ def test_td3_lstm_learns_in_tiny_procedural_tanks_from_a_level_pool_under_random
     # the task learnable. The evaluation's episodes draw their own layouts (the env's generator). With
     # LEVERS, on 2 cores of the AMD EPYC CPU: 0.86 / 0.92 / 0.94 after 96k / 128k / 160k env steps of a 160k
     # run, 0.91 at the end of this 128k one; untrained 0-0.02.
-    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in EASY.items()}
-    raw["env"].update({"scenario": 0, "layout_boxes": [0, 1], "layout_capsules": [0, 1], "layout_beam_fraction": 0.0,
-                       "dr_motor_tau_scale": [1.0, 2.0], "dr_thrust_air_scale": [0.9, 1.1], "dr_obs_latency": [0, 1]})
-    raw["train"].update({"total_env_steps": PROCEDURAL_STEPS, "eval_every": PROCEDURAL_STEPS,
-                         "checkpoint_every": PROCEDURAL_STEPS, "log_every": 16000})
-    raw["agent"].update({k.split("__")[1]: v for k, v in LEVERS.items()})
+    raw = easy_raw(env__scenario=0, env__layout_boxes=[0, 1], env__layout_capsules=[0, 1],
+                   env__layout_beam_fraction=0.0, env__dr_motor_tau_scale=[1.0, 2.0],
+                   env__dr_thrust_air_scale=[0.9, 1.1], env__dr_obs_latency=[0, 1],
+                   train__total_env_steps=PROCEDURAL_STEPS, train__eval_every=PROCEDURAL_STEPS,
+                   train__checkpoint_every=PROCEDURAL_STEPS, train__log_every=16000, **LEVERS)
+    # Set whole: EASY has no levels section for easy_raw to override.
     # A small pool: on a CPU, checking a level (its grids and route fields) costs about half a second.
     raw["levels"] = {"sampler": "learnability", "capacity": 16, "refresh": 2, "route_reward": 1.0}
     config = config_from_dict(raw)
