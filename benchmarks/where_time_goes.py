@@ -211,6 +211,7 @@ def main() -> None:
     p.add_argument("--child", choices=["startup"], help=argparse.SUPPRESS)
     p.add_argument("--cache", help=argparse.SUPPRESS)
     p.add_argument("--skip-startup", action="store_true")
+    p.add_argument("--skip-iteration", action="store_true")
     args = p.parse_args()
     if args.child == "startup":
         print(json.dumps(startup(args.config, args.cache)))
@@ -232,7 +233,7 @@ def main() -> None:
                                          text=True, check=True)
                     runs[kind].append(json.loads(out.stdout.strip().splitlines()[-1]))
                     print(kind, rep, sum(m["s"] for m in runs[kind][-1]), flush=True)
-    rows, facts = iteration(args.config, args.iters)
+    rows, facts = ([], None) if args.skip_iteration else iteration(args.config, args.iters)
     result = {**meta, "config": args.config, "python_bare_start_s": base, "startup": runs, "iteration": rows,
               "iteration_facts": facts}
     os.makedirs(args.out, exist_ok=True)
@@ -256,6 +257,8 @@ def markdown(res: dict) -> str:
         lines += [f"| **total** | **{sum(med['cold']):.2f}** | **{sum(med['warm']):.2f}** |", "",
                   f"A bare `python -c pass` takes {statistics.median(res['python_bare_start_s']):.2f} s.", ""]
     f = res["iteration_facts"]
+    if f is None:
+        return "\n".join(lines) + "\n"
     lines += [f"## One training iteration ({f['num_envs']:,} envs, {f['updates_per_step']} updates of "
               f"{f['batch_size']:,} x {f['seq_len']} (burn-in {f['burn_in']}); median ms)", "",
               "| piece | ms | per | note |", "|---|---|---|---|"]

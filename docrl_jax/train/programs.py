@@ -138,6 +138,9 @@ def _jitted(config: Config, devices: tuple, traced: bool):
         chunk = lambda state, *hp: expand(trainer.chunk(squeeze(state), *squeeze(hp)))  # noqa: E731
         evaluate = lambda params, keys: expand(trainer.evaluate(squeeze(params), keys[0]))  # noqa: E731
         eval_starts = starts and (lambda keys: expand(starts(keys[0])))
+    for f, name in ((init, "init"), (chunk, "chunk"), (evaluate, "evaluate"), (eval_starts, "eval_starts")):
+        if f:  # XLA names a program after its function: jit_chunk, not jit__lambda, in profiles and dumps
+            f.__name__ = name
     seeds, whole = PartitionSpec(sharding.SEED_AXIS), PartitionSpec()
     hp = (seeds,) if traced else ()
     return (_over_seeds(init, devices, (seeds, whole, *hp)),

@@ -42,3 +42,27 @@ def test_packaged_default_traces_at_its_gpu_size(name):
     n, steps = config.env.num_envs, config.replay.buffer_size // config.env.num_envs
     assert (n, steps) == (4096, 256) and state.buffer.data["obs"].shape == (n, steps, 26)
     assert metrics["critic_loss"].shape == (make_trainer(config).num_chunks,)
+
+
+def test_a_chunk_traces_the_agent_update_once(monkeypatch):
+    """Tracing is a cold launch's first cost after the imports: the chunk's gradient updates sit in a
+    `lax.cond` whose skip branch needs their output shapes, and reading those shapes must not trace the
+    updates a second time (it did: about a fifth of lowering the chunk)."""
+    from docrl_jax.train import trainer as trainer_module
+
+    traced, make_agent = [], trainer_module.make_agent
+
+    def counting_agent(config):
+        agent = make_agent(config)
+
+        def update(*args, **kwargs):
+            traced.append(1)
+            return agent.update(*args, **kwargs)
+        return agent._replace(update=update)
+
+    monkeypatch.setattr(trainer_module, "make_agent", counting_agent)
+    config = load_config("td3_lstm", SMALL + ["train.seed=7"])   # its own config: make_trainer is memoised
+    trainer = make_trainer(config)
+    state = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
+    jax.jit(trainer.chunk).lower(state)
+    assert len(traced) == 1
