@@ -204,7 +204,8 @@ def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
 
 def paired(launches: list[dict], a: str, b: str) -> str:
     """Seed by seed, side `a` against side `b` over the seeds warm on both: how many `a` reached 90 % sooner
-    and the median of the differences (a launch that never reached it counts as +inf)."""
+    and the median of `b`'s time minus `a`'s (positive: `a` was sooner; a launch that never reached it
+    counts as +inf)."""
     t90 = lambda r: r["time_to_90_s"] if r["time_to_90_s"] is not None else float("inf")  # noqa: E731
     warm = lambda side: {r["seed"]: r for r in launches if r["side"] == side and r["cold"] is False}  # noqa: E731
     sa, sb = warm(a), warm(b)
@@ -213,8 +214,8 @@ def paired(launches: list[dict], a: str, b: str) -> str:
         return ""
     diffs = [t90(sb[s]) - t90(sa[s]) for s in seeds]
     return (f"\nSeed by seed, warm on both sides ({len(seeds)} seeds): {a} reached 90 % sooner than {b} on "
-            f"{sum(d > 0 for d in diffs)}; median difference {secs(statistics.median(diffs))} "
-            f"(range {secs(min(diffs))} to {secs(max(diffs))}).\n")
+            f"{sum(d > 0 for d in diffs)}; {b} minus {a} (seconds {a} saved): median "
+            f"{secs(statistics.median(diffs))}, range {secs(min(diffs))} to {secs(max(diffs))}.\n")
 
 
 def main(argv=None) -> int:
