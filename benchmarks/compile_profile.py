@@ -35,9 +35,9 @@ _PIPELINE = re.compile(r"Running HLO pass pipeline on module ([\w.\-]+): ([\w.\-
 
 
 def parse(lines):
-    """(per program: pass seconds summed; per (program, pass); other timers by label)."""
+    """(the timer lines, per (program, pass): seconds summed over its runs, other timers by label)."""
     module_of = {}                                   # thread -> the program its pipeline runs on
-    per_module, per_pass, timers = collections.Counter(), collections.Counter(), collections.Counter()
+    kept, per_pass, timers = [], collections.Counter(), collections.Counter()
     for line in lines:
         m = _LINE.match(line)
         if not m:
@@ -45,18 +45,18 @@ def parse(lines):
         thread, _, text = m.groups()
         if p := _PIPELINE.search(text):
             module_of[thread] = p.group(1)
+            kept.append(line)
             continue
         t = _TIME.match(text)
         if not t:
             continue
+        kept.append(line)
         label, secs = t.group(1).strip(), float(t.group(2)) * _UNITS[t.group(3)]
         if label.startswith("HLO pass: "):
-            module = module_of.get(thread, "?")
-            per_module[module] += secs
-            per_pass[(module, label[len("HLO pass: "):])] += secs
+            per_pass[(module_of.get(thread, "?"), label[len("HLO pass: "):])] += secs
         else:
             timers[label] += secs
-    return per_module, per_pass, timers
+    return kept, per_pass, timers
 
 
 def main(argv=None) -> int:
@@ -74,10 +74,12 @@ def main(argv=None) -> int:
     proc = subprocess.run(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     wall = time.time() - t0
     lines = proc.stdout.splitlines()
-    kept = [ln for ln in lines if _TIME.search(ln.split("] ", 1)[-1]) or _PIPELINE.search(ln)]
+    kept, per_pass, timers = parse(lines)
     with gzip.open(os.path.join(args.out, "xla_vlog.log.gz"), "wt") as f:
         f.write("\n".join(kept) + "\n")
-    per_module, per_pass, timers = parse(lines)
+    per_module = collections.Counter()
+    for (module, _), secs in per_pass.items():
+        per_module[module] += secs
     meta = run_meta()
     out = [f"# Where a cold compile goes, by XLA's timers ({meta['gpu']}, {meta['date']})", "",
            f"Profiler: `{meta['command']}`  ", f"Versions: {meta['versions']}", "",
