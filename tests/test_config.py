@@ -65,7 +65,7 @@ def test_generalist_trains_in_procedural_tanks_under_randomisation():
     assert env["dr_mass_scale"] == (0.8, 1.2) and env["vel_i_rate"] == 0.3
     # the beams up and down, which the actor and critics see as two more observation floats
     assert env["vertical_beams"] and observation_size(load_config("td3_lstm")) == 26
-    # a collision margin in training only: the pairs, evaluated without it, get their own env
+    # a collision margin in training only (the pairs, in scenario 2, get their own env)
     assert env["collision_margin"] == 0.2 and env["goal_clearance"] == 0.8 and not g.train.eval_alongside
     # and a margin around the hull, for what the fan does not see; no evaluation runs with either
     assert env["hull_margin"] == 0.1 and {"collision_margin", "hull_margin"}.isdisjoint(cfg.evaluation_env_kwargs(g))
@@ -134,29 +134,24 @@ def test_eval_alongside_auto_is_on_where_possible_and_true_where_impossible_is_r
     notes = []
     generalist = yaml.safe_load((packaged_configs_dir() / "td3_lstm_generalist.yaml").read_text())
     assert not config_from_dict(generalist, backend="gpu", notes=notes).train.eval_alongside
-    assert any(n.startswith("train.eval_alongside auto -> false (env.collision_margin ends the training env's")
-               for n in notes)
-    notes = []
-    del generalist["env"]["collision_margin"], generalist["env"]["hull_margin"]
-    assert not config_from_dict(generalist, backend="gpu", notes=notes).train.eval_alongside
     assert any(n.startswith("train.eval_alongside auto -> false (the paper pairs run in scenario 2") for n in notes)
     for sets in (["train.eval_alongside=true", "env.scenario=0"], ["train.eval_alongside=true", "env.dr_wind_scale=[1.0, 2.0]"],
-                 ["train.eval_alongside=true", "train.eval_trained_actor=true"],
-                 ["train.eval_alongside=true", "env.collision_margin=0.2", "env.goal_clearance=0.8",
-                  "train.eval_paper_pairs=false"]):
+                 ["train.eval_alongside=true", "train.eval_trained_actor=true"]):
         with pytest.raises(ConfigError, match="train.eval_alongside.*not possible here.*set it false"):
             load_config("td3_lstm", sets)
     # Pairs of the training env's own scenario and plant, or no pairs: possible.
     assert load_config("td3_lstm", ["train.eval_alongside=true", "env.scenario=3"]).train.eval_alongside
     assert load_config("td3_lstm", ["train.eval_alongside=true", "env.scenario=0",
                                     "train.eval_paper_pairs=false"]).train.eval_alongside
-    # The training-only collision margin: the pairs get the env without it, an env of their own.
+    # The training-only margins (td3_lstm's collision margin): every evaluation runs without them, the lanes
+    # too (they clear them in their episodes' states), so neither the pairs nor the lanes need another env.
     margin = load_config("td3_lstm", ["env.collision_margin=0.2", "env.goal_clearance=0.8"])
-    assert cfg.pairs_own_env(margin) and "collision_margin" not in cfg.nominal_env_kwargs(margin)
+    assert not cfg.pairs_own_env(margin) and "collision_margin" not in cfg.nominal_env_kwargs(margin)
     assert cfg.evaluation_env_kwargs(margin) == {k: v for k, v in cfg.env_kwargs(margin).items() if k != "collision_margin"}
     hull = load_config("td3_lstm", ["env.hull_margin=0.2", "train.eval_alongside=auto"])
     assert "hull_margin" in cfg.env_kwargs(hull) and "hull_margin" not in cfg.evaluation_env_kwargs(hull)
-    assert cfg.alongside_blocker(hull) == "env.hull_margin ends the training env's episodes earlier than an evaluation's"
+    assert cfg.alongside_blocker(hull) is None and cfg.alongside_blocker(margin) is None
+    assert cfg.env_kwargs(config_from_dict(raw, backend="gpu"))["collision_margin"] > 0   # the default's lanes
     with pytest.raises(ConfigError, match="eval_alongside='maybe': must be a bool .* or 'auto'"):
         load_config("td3_lstm", ["train.eval_alongside=maybe"])
 

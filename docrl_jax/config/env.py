@@ -44,20 +44,18 @@ def nominal_env_kwargs(c: Config) -> dict[str, Any]:
 def pairs_own_env(c: Config) -> bool:
     """Whether the paper-pair evaluation needs an env of its own: the pairs run and their scenario or
     plant differs from the training env's (a procedural or domain-randomised run)."""
-    return c.train.eval_paper_pairs and (pair_scenario(c) != c.env.scenario or nominal_env_kwargs(c) != env_kwargs(c))
+    return c.train.eval_paper_pairs and (pair_scenario(c) != c.env.scenario
+                                         or nominal_env_kwargs(c) != evaluation_env_kwargs(c))
 
 
 def alongside_blocker(c: Config) -> str | None:
     """Why this run's evaluations cannot run alongside training (train.eval_alongside), or None. The
     lanes are extra envs of the training step, so every evaluation episode must run in the training env
-    and one policy must drive them."""
+    (its training-only margins switched off per lane) and one policy must drive them."""
     if c.train.eval_trained_actor and c.agent.policy_average_tau < 1.0:
         return "train.eval_trained_actor evaluates a second policy on the same episodes"
     if c.levels.sampler != "env":
         return f"levels.sampler={c.levels.sampler} draws the training envs' tanks from a pool"
-    for name in TRAINING_ONLY_ENV:
-        if env_kwargs(c).get(name, 0.0) > 0.0:
-            return f"env.{name} ends the training env's episodes earlier than an evaluation's"
     if pairs_own_env(c):
         return (f"the paper pairs run in scenario {pair_scenario(c)} with the nominal plant, not in the training "
                 f"env (env.scenario={c.env.scenario}" + (", dr_* ranges)" if nominal_env_kwargs(c) != env_kwargs(c)

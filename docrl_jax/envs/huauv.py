@@ -86,6 +86,9 @@ class SimState:
     layout: Any               # layouts.Layout of a procedural tank (scenario 0); None otherwise
     actions: jax.Array        # (L, 3) the agent's last L actions, newest first (action latency; L may be 0)
     observations: jax.Array   # (L, obs size) the last L observations, newest first (observation latency)
+    training_margins: jax.Array  # () bool: env.collision_margin and env.hull_margin end this episode. Set at
+                                 # reset where the env has them; the trainer's evaluation lanes clear it,
+                                 # so they fly the training env's step under the test's rules
 
 
 @struct.dataclass
@@ -268,7 +271,8 @@ class HUAUVEnv:
                        key=k_next, plant=plant, layout=layout,
                        # Until the first action arrives the controller holds a hover, (-1, 0, 0).
                        actions=jnp.tile(jnp.array([-1.0, 0.0, 0.0]), (self._action_queue, 1)),
-                       observations=jnp.tile(obs, (self._obs_queue, 1)))
+                       observations=jnp.tile(obs, (self._obs_queue, 1)),
+                       training_margins=jnp.asarray(p.collision_margin > 0.0 or p.hull_margin > 0.0))
         false = jnp.zeros((), bool)
         info = self._info(ranges, position, jnp.zeros(3), rot, goal, underwater, false, false, false, false,
                           false, sim.step, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
@@ -327,8 +331,9 @@ class HUAUVEnv:
         # The hull's clearance to the obstacles serves the contact check and the training-only margin.
         to_obstacles = geometry.hull_clearance(obstacles, position, rot)
         touching = jnp.minimum(to_obstacles, geometry.hull_clearance(boundary, position, rot)) < 0.0
-        collision = (jnp.min(true_ranges) < p.collision_distance + p.collision_margin) | touching | (
-            to_obstacles < p.hull_margin)
+        margins = sim.training_margins
+        collision = (jnp.min(true_ranges) < p.collision_distance + jnp.where(margins, p.collision_margin, 0.0)) | (
+            touching | (margins & (to_obstacles < p.hull_margin)))
         out_of_bounds = (position[2] < lo) | (position[2] > hi)
         terminated = collision | out_of_bounds | ~finite_state
         dist = jnp.linalg.norm(sim.goal - position)

@@ -20,9 +20,10 @@ The same episodes run in one of two ways:
 * alongside training (`train.eval_alongside`, `Alongside`): the episodes are extra lanes of the
   training envs, stepped in the chunk's own vectorised env step by a frozen copy of the policy, and
   counted by the same `Tally`. An episode under the training env's auto-reset is exactly the env's
-  episode until it ends (docrl_jax.envs.wrappers), and a lane stops counting at its first arrival
-  (the training env goes on to a new goal where the evaluation's own env stops), so both ways give the
-  same results from the same key.
+  episode until it ends (docrl_jax.envs.wrappers), a lane stops counting at its first arrival
+  (the training env goes on to a new goal where the evaluation's own env stops), and a lane's episode
+  runs without the training-only margins (its state's `training_margins` is cleared), so both ways give
+  the same results from the same key.
 """
 
 from __future__ import annotations
@@ -180,7 +181,9 @@ def make_evaluation(config: Config, act, init_carry, memory: bool, train_env) ->
         lanes = slice(-size, None)
 
         def lane_starts(key):
-            return jax.tree.map(lambda *xs: jnp.concatenate(xs), *starts(key, train_env, train_env))
+            states = jax.tree.map(lambda *xs: jnp.concatenate(xs), *starts(key, train_env, train_env))
+            # The training env's own episodes end at its training-only margins; an evaluation's do not.
+            return states.replace(sim=states.sim.replace(training_margins=jnp.zeros(size, bool)))
 
         def init(actor_params, fresh) -> Lanes:
             return Lanes(params=actor_params, carry=init_carry((size,)), tally=Tally.start(size, alive=False),

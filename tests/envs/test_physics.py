@@ -146,6 +146,20 @@ def test_collision_margin_ends_the_episode_further_out(env_fns):
     assert 0.5 < ranges[i] < 0.8 <= ranges[i - 1], ranges[i - 1:i + 1]
 
 
+def test_an_episode_without_its_training_margins_ends_where_a_test_ends_it(env_fns):
+    # The margin above, cleared in the episode's state as the trainer's evaluation lanes clear it: the
+    # range check fires under 0.5 m again.
+    _, reset_to, rollout = env_fns(2, collision_margin=0.3)
+    s0 = reset_to(jax.random.PRNGKey(0), jnp.array((2.0, -0.5, 2.0)), np.pi / 2, jnp.array((0.0, 0.0, 4.5)))
+    assert bool(s0.sim.training_margins)
+    s0 = s0.replace(sim=s0.sim.replace(training_margins=jnp.zeros((), bool)))
+    _, (_, rew, done, info) = rollout(s0, jnp.tile(jnp.array([1.0, 0.0, 0.0]), (60, 1)))
+    i = int(np.argmax(np.asarray(done)))
+    assert np.asarray(done)[i] and bool(info["collision"][i]) and float(rew[i]) == -10.0
+    ranges = np.asarray(info["ranges"]).min(axis=1)
+    assert ranges[i] < 0.5 <= ranges[i - 1], ranges[i - 1:i + 1]
+
+
 def test_hull_touching_a_thin_obstacle_is_caught_without_ranges(env_fns):
     # With the range check off, only the geometric hull test can stop the vehicle at the riser surface.
     _, _, rew, done, info = _run(env_fns, (2.0, -0.2, 2.0), np.pi / 2, (1.0, 0.0, 0.0), 60, scenario=2, wind=False,

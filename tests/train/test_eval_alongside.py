@@ -28,10 +28,12 @@ from docrl_jax.train.program_store import compile_lowered
 from docrl_jax.train.programs import compile_programs
 
 TRAINED = Path(__file__).resolve().parents[1] / "data" / "trained" / "td3_lstm"
-# Chunks of 100 iterations of 4 training envs and 36 evaluation lanes (12 episodes x 3 groups).
+# Chunks of 100 iterations of 4 training envs and 36 evaluation lanes (12 episodes x 3 groups). The
+# training env ends its episodes at a fan range of 0.95 m (a collision margin of 0.45, wider than
+# td3_lstm's, so that the pairs' flights past the risers would end at it); the evaluations run without.
 SETS = ["env.num_envs=4", "train.updates_per_step=0", "train.eval_episodes=12", "train.log_every=400",
         "train.eval_alongside=true", "train.start_steps=100", "train.total_env_steps=4800",
-        "train.eval_every=400", "train.checkpoint_every=2000"]
+        "train.eval_every=400", "train.checkpoint_every=2000", "env.collision_margin=0.45", "env.goal_clearance=1.0"]
 
 
 @pytest.fixture(scope="module")
@@ -54,11 +56,13 @@ def setup():
     return programs, fresh, policies, handed
 
 
-def _alongside(programs, state, params, key, swap_to=None):
+def _alongside(programs, state, params, key, swap_to=None, starts=None):
     """Begins an evaluation of `params` in the lanes and runs chunks until its last episode ended;
-    `swap_to` replaces the run's policy after the first chunk (the lanes must not see it)."""
+    `swap_to` replaces the run's policy after the first chunk (the lanes must not see it); `starts`
+    replaces the episodes' first states that eval_starts makes from `key`."""
+    starts = programs.eval_starts(key) if starts is None else starts
     state = state.replace(agent=state.agent.replace(actor_average=jax.tree.map(jnp.copy, params)),
-                          evals=state.evals.replace(begin=jnp.ones(1, bool), fresh=programs.eval_starts(key)))
+                          evals=state.evals.replace(begin=jnp.ones(1, bool), fresh=starts))
     for i in range(6):  # at most 500 steps: five chunks of 100
         state, m = programs.chunk(state)
         out = jax.device_get(m["evaluation"])
@@ -94,6 +98,22 @@ def test_lanes_give_the_evaluation_programs_results(setup):
     other = eval_keys([0], 8)
     _, lanes = _alongside(programs, state, policies["trained"], other)
     _assert_same(lanes, jax.device_get(programs.evaluate(policies["trained"], other)))
+
+
+def test_lanes_fly_without_the_training_margins(setup):
+    """The lanes' episodes start with the training-only margins cleared, so they end where the evaluation
+    program's env (without margins) ends them (the test above); with the margins left on, the same
+    episodes of the same policy would end otherwise."""
+    programs, fresh, policies, _ = setup
+    key = eval_keys([0], 7)
+    starts = programs.eval_starts(key)
+    assert starts.sim.training_margins.shape == (1, 36) and not np.any(starts.sim.training_margins)
+    assert np.all(fresh().env.sim.training_margins[0, :4])   # the training envs' own episodes keep them
+    kept = starts.replace(sim=starts.sim.replace(training_margins=jnp.ones_like(starts.sim.training_margins)))
+    _, lanes = _alongside(programs, fresh(), policies["trained"], key, starts=kept)
+    program = jax.device_get(programs.evaluate(policies["trained"], key))
+    assert program["success_air_to_water"][0] == 1.0
+    assert lanes["success_air_to_water"][0] < 1.0 and lanes["collision_air_to_water"][0] > 0.0
 
 
 def test_lanes_keep_the_policy_they_began_with(setup):
