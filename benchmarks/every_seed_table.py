@@ -44,14 +44,16 @@ SCENARIO_COLUMNS = (1, 2, 3)
 DIRS = ("air_to_water", "water_to_air")
 
 
-def unpack(source: str, into: Path) -> Path:
+def unpack(source: str, into: Path, scratch: Path | None = None) -> Path:
     """The round's packs (the $OUT tar of gpu_lanes, a folder holding pack/ or pack/ itself) unpacked
-    into `into`: runs/NAME, eval/NAME, the logs and `times`. Returns `into`."""
+    into `into`: runs/NAME, eval/NAME, the logs and `times`. A tar is first extracted into `scratch`
+    (default into/tar; several rounds unpacked into one `into` need one each). Returns `into`."""
     src = Path(source)
     if src.is_file():
+        scratch = into / "tar" if scratch is None else scratch
         with tarfile.open(src) as t:
-            t.extractall(into / "tar", filter="data")
-        src = into / "tar"
+            t.extractall(scratch, filter="data")
+        src = scratch
     pack = src / "pack" if (src / "pack").is_dir() else src
     for f in sorted(pack.glob("runs_*.tgz")):
         with tarfile.open(f) as t:
