@@ -22,7 +22,7 @@ from typing import Any
 
 # Name -> what it is, in a line. The names a command's --policy takes are these and "bba".
 PRETRAINED = {
-    "td3_lstm": "TD3, LSTM actor: the default config as packaged now, seed 0 (DoCRL-D)",
+    "td3_lstm": "TD3, LSTM actor: the default config as packaged on 2026-11-27, seed 0 (DoCRL-D)",
     "sac_lstm": "SAC, LSTM actor: Table I's DoCRL-S, seed 0",
     "sac_mlp": "SAC, MLP actor: Table I's Sto., seed 0",
     "sac_mlp_generalist": "SAC, MLP actor, trained on procedural tanks under a randomised plant: the generalist "
