@@ -133,6 +133,15 @@ def meets_goal(ev: dict | None) -> bool | None:
     return all(ev.get((s, d), 0.0) >= bar for s, bar in GOAL for d in DIRS)
 
 
+def goal_counts(evs: list[dict]) -> tuple[int, int, int]:
+    """How many of the evaluator's results `evs` meet the goal's scenario-2 bar, its scenarios 1 and 3 bars
+    (both ways each), and the whole goal."""
+    bar = dict(GOAL)
+    s2 = sum(all(e.get((2, d), 0) >= bar[2] for d in DIRS) for e in evs)
+    s13 = sum(all(e.get((s, d), 0) >= bar[s] for s in (1, 3) for d in DIRS) for e in evs)
+    return s2, s13, sum(bool(meets_goal(e)) for e in evs)
+
+
 def pct(x: float | None) -> str:
     return "–" if x is None else f"{100 * x:.0f}"
 
@@ -191,11 +200,10 @@ def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
         if not done:
             continue
         bar = dict(GOAL)
-        s2 = sum(all(e.get((2, d), 0) >= bar[2] for d in DIRS) for e in done)
-        s13 = sum(all(e.get((s, d), 0) >= bar[s] for s in (1, 3) for d in DIRS) for e in done)
+        s2, s13, both = goal_counts(done)
         out.append(f"- evaluator, {w} policies: {s2}/{len(done)} >= {bar[2]:.0%} both ways in scenario 2, "
                    f"{s13}/{len(done)} >= {bar[1]:.0%} / {bar[3]:.0%} both ways in scenarios 1 / 3, "
-                   f"{sum(bool(meets_goal(e)) for e in done)}/{len(done)} both ({len(launches) - len(done)} not evaluated)")
+                   f"{both}/{len(done)} both ({len(launches) - len(done)} not evaluated)")
     out += ["", f"Goal (issue 47): every final policy {goal}; evaluator {', '.join(map(str, sorted(trials))) or '–'} "
             "trials per scenario and direction. Launch to 90 %: the in-training evaluation of the paper pairs "
             "(scenario 2), seconds after the process started. In-training best: the policy the training evaluation "

@@ -27,7 +27,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from every_seed_table import DIRS, GOAL, SCENARIO_COLUMNS, TARGET, meets_goal, pair, pct, unpack  # noqa: E402
+from every_seed_table import GOAL, SCENARIO_COLUMNS, TARGET, goal_counts, pair, pct, unpack  # noqa: E402
 from time_to_success import read_rows, reached  # noqa: E402
 
 from docrl_jax.train import best_policy  # noqa: E402
@@ -98,10 +98,9 @@ def table(rows: list[dict]) -> str:
             done = [r[f"eval_{w}"] for r in mine if r[f"eval_{w}"]]
             if not done:
                 continue
-            s2 = sum(all(e.get((2, d), 0) >= bar[2] for d in DIRS) for e in done)
-            s13 = sum(all(e.get((s, d), 0) >= bar[s] for s in (1, 3) for d in DIRS) for e in done)
+            s2, s13, both = goal_counts(done)
             text += (f"; {w}: {s2}/{len(done)} >= {bar[2]:.0%} in s2, {s13}/{len(done)} >= {bar[1]:.0%} in s1 and s3, "
-                     f"**{sum(bool(meets_goal(e)) for e in done)}/{len(done)} meet the goal**")
+                     f"**{both}/{len(done)} meet the goal**")
         summary.append(text)
     goal = "; ".join(f">= {b:.0%} both ways in scenario {s}" for s, b in GOAL)
     return "\n".join([*lines, "", *summary, "", f"Goal (issue 47), per policy by the evaluator: {goal}. "
