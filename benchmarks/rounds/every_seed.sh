@@ -13,7 +13,8 @@
 # agent.policy_average_tau_start=0) gives each seed an old launch too, stopped at 90 % (gpu_lanes'
 # `target`: a time to 90 % without an end or evaluations), named old_sSEED and run before or after the
 # new one in turn, so neither side always goes first. LANES sets the lanes (N lanes: seeds FIRST+lane, +N, ...);
-# FIRST (default 4701) the first of the ten seeds, so a later round can fly ten seeds no earlier round saw.
+# FIRST (default 4701) the first of the ten seeds, so a later round can fly ten seeds no earlier round saw;
+# COUNT (default 10) how many, so a round a lost machine cut off can go on from the seed it had not begun.
 # A CPU rehearsal shortens it: EXTRA (more train arguments, empty in the round), TRIALS, LANES.
 LANES=${LANES:-"0 1 2 3"}
 export DOCRL_JAX_COMPILE_CACHE=$R/cache
@@ -27,7 +28,7 @@ old_side() { target old_s$1 "td3_lstm seed $1 old" $1 --config td3_lstm ${OLD_AR
 lane() {
   local lanes=$(echo $LANES | wc -w) turn=0
   local first=${FIRST:-4701}
-  for ((seed = first + $1; seed <= first + 9; seed += lanes)); do
+  for ((seed = first + $1; seed < first + ${COUNT:-10}; seed += lanes)); do
     case " ${SIDES:-new} " in
       *" old "*) if ((turn++ % 2)); then old_side $seed; new_side $seed; else new_side $seed; old_side $seed; fi;;
       *) new_side $seed;;
