@@ -15,7 +15,8 @@ schedule, every 2nd update at progress 0); `agent.policy_freq=1` times critic + 
 `--trace DIR` also runs one more call of each variant under `jax.profiler.trace` (a Perfetto trace
 per variant in DIR) and reads the device's kernels from it: how many launch per update, how long the
 device is busy per update against the wall time per update (the rest is time between kernels), and
-the kernels that take the most time (`<stem>_kernels.md`). Every variant also counts the fusions and
+the kernels that take the most time and the time of each kind of kernel (matmuls, reductions,
+transposes, copies, other fusions: `<stem>_kernels.md`). Every variant also counts the fusions and
 library calls in its compiled program (`hlo_kernels`: the whole scan, an upper bound on the kernels
 one update launches).
 """
@@ -95,17 +96,39 @@ def device_kernels(trace_dir: str) -> tuple[list[dict], dict]:
     return [e for e in device if "stream" in threads.get((e["pid"], e["tid"]), "").lower()], dict(lines)
 
 
+# What a kernel does, read from the name XLA or the library gave it (first pattern that matches).
+KERNEL_KINDS = (("matmul", r"gemm|nvjet|cutlass|xmma|cublas|dot"), ("reduction", r"reduce"),
+                ("transpose", r"transpose"), ("copy", r"copy|memcpy|memset|dynamic.update.slice|slice"),
+                ("elementwise", r"loop_|fusion"))
+
+
+def kernel_kind(name: str) -> str:
+    return next((kind for kind, pattern in KERNEL_KINDS if re.search(pattern, name)), "other")
+
+
 def kernel_summary(kernels: list[dict], updates: int, wall_ms: float, top: int = 15) -> dict:
+    """Calls and device time per update of every kernel (`all`), of the `top` ones, and of each kind of
+    kernel (`kinds`: how many launch and how long they take, where a fused update would save)."""
     by_name = collections.defaultdict(lambda: [0, 0.0])
     for k in kernels:
         by_name[k["name"]][0] += 1
         by_name[k["name"]][1] += k["dur"]
     busy_us = sum(v[1] for v in by_name.values())
-    ranked = sorted(by_name.items(), key=lambda kv: -kv[1][1])[:top]
+
+    def row(n, c, t):
+        return {"kernel": n[:90], "calls_per_update": round(c / updates, 2), "us_per_update": round(t / updates, 2),
+                "share_of_busy": round(t / busy_us, 3) if busy_us else None}
+    ranked = sorted(by_name.items(), key=lambda kv: -kv[1][1])
+    kinds = collections.defaultdict(lambda: [0, 0.0])
+    for n, (c, t) in ranked:
+        kinds[kernel_kind(n)][0] += c
+        kinds[kernel_kind(n)][1] += t
     return {"kernels_per_update": round(len(kernels) / updates, 1),
             "busy_ms_per_update": round(busy_us / 1e3 / updates, 4), "wall_ms_per_update": round(wall_ms, 4),
-            "top": [{"kernel": n[:90], "calls_per_update": round(c / updates, 2), "us_per_update": round(t / updates, 2),
-                     "share_of_busy": round(t / busy_us, 3) if busy_us else None} for n, (c, t) in ranked]}
+            "top": [row(n, c, t) for n, (c, t) in ranked[:top]],
+            "kinds": [{**row(kind, c, t), "us_per_call": round(t / c, 2) if c else None}
+                      for kind, (c, t) in sorted(kinds.items(), key=lambda kv: -kv[1][1])],
+            "all": [row(n, c, t) for n, (c, t) in ranked]}
 
 
 def measure(config_name: str, variant: str, updates: int, repeats: int, progress: float,
@@ -165,6 +188,10 @@ def write_kernel_tables(out: str, stem: str, config: str, rows: list[dict]) -> N
                   "|---|---|---|---|"]
         lines += [f"| `{t['kernel']}` | {t['calls_per_update']} | {t['us_per_update']} | {t['share_of_busy']} |"
                   for t in k["top"]] + [""]
+        lines += ["By kind (`KERNEL_KINDS`; every kernel is in the JSON's `kernels.all`):", "",
+                  "| kind | calls / update | us / update | us / call | share of busy |", "|---|---|---|---|---|"]
+        lines += [f"| {t['kernel']} | {t['calls_per_update']} | {t['us_per_update']} | {t['us_per_call']} | "
+                  f"{t['share_of_busy']} |" for t in k["kinds"]] + [""]
     with open(os.path.join(out, f"{stem}_kernels.md"), "w") as f:
         f.write("\n".join(lines))
 

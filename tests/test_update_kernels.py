@@ -38,3 +38,6 @@ def test_kernels_come_from_the_device_streams_only(tmp_path):
     assert s["busy_ms_per_update"] == (40 + 12 + 10) / 1e3 / 2
     assert s["top"][0] == {"kernel": "gemm_fusion_dot_1", "calls_per_update": 2.0, "us_per_update": 20.0,
                            "share_of_busy": round(40 / 62, 3)}
+    kinds = {k["kernel"]: (k["calls_per_update"], k["us_per_update"], k["us_per_call"]) for k in s["kinds"]}
+    assert kinds == {"matmul": (2.0, 20.0, 10.0), "elementwise": (3.0, 6.0, 2.0), "reduction": (1.0, 5.0, 5.0)}
+    assert sum(r["calls_per_update"] for r in s["all"]) == s["kernels_per_update"]
