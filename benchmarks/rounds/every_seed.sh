@@ -14,15 +14,18 @@
 # `target`: a time to 90 % without an end or evaluations), named old_sSEED and run before or after the
 # new one in turn, so neither side always goes first. LANES sets the lanes (N lanes: seeds FIRST+lane, +N, ...);
 # FIRST (default 4701) the first of the ten seeds, so a later round can fly ten seeds no earlier round saw;
-# COUNT (default 10) how many, so a round a lost machine cut off can go on from the seed it had not begun.
+# COUNT (default 10) how many, so a round a lost machine cut off can go on from the seed it had not begun;
+# WHICH (default "final best") the policies the evaluator flies (final alone where device time is short:
+# a checkpoint's metadata says whether the run's best evaluation was its last).
 # A CPU rehearsal shortens it: EXTRA (more train arguments, empty in the round), TRIALS, LANES.
 LANES=${LANES:-"0 1 2 3"}
 export DOCRL_JAX_COMPILE_CACHE=$R/cache
 EVAL="--trials ${TRIALS:-100} --scenarios 1,2,3"
 new_side() {
   train s$1 "td3_lstm seed $1" --config td3_lstm --set train.seed=$1 ${EXTRA:-}
-  evaluator s${1}_final "td3_lstm seed $1 final" $R/runs/s$1 -- --which final $EVAL
-  evaluator s${1}_best "td3_lstm seed $1 best" $R/runs/s$1 -- --which best $EVAL
+  for which in ${WHICH:-final best}; do
+    evaluator s${1}_$which "td3_lstm seed $1 $which" $R/runs/s$1 -- --which $which $EVAL
+  done
 }
 old_side() { target old_s$1 "td3_lstm seed $1 old" $1 --config td3_lstm ${OLD_ARGS:-} ${EXTRA:-}; }
 lane() {
