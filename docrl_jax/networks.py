@@ -18,7 +18,6 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from docrl_jax import fused_lstm
 from docrl_jax.envs import ACTION_SIZE
 
 LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0  # orig SAC clamp
@@ -37,12 +36,9 @@ class _Head(nn.Module):
 
 
 class LSTMActor(nn.Module):
-    """LSTM(26 -> units) -> Linear(units -> 3): tanh output (TD3) or Gaussian head (SAC). `kernel`
-    (agent.lstm_kernel) is how the updates run it over sequences without gradient: "xla" step by
-    step (`unroll`), "pallas" in one kernel (docrl_jax/fused_lstm.py); acting is the same either way."""
+    """LSTM(26 -> units) -> Linear(units -> 3): tanh output (TD3) or Gaussian head (SAC)."""
     units: int
     stochastic: bool = False
-    kernel: str = "xla"
 
     @nn.compact
     def __call__(self, carry, obs):
@@ -133,7 +129,7 @@ def make_actor(agent_config, obs_size: int, stochastic: bool) -> nn.Module:
     (reading agent.frames stacked observations); a Gaussian head when `stochastic` (SAC)."""
     a = agent_config
     if a.actor == "lstm":
-        return LSTMActor(units=a.actor_hidden[0], stochastic=stochastic, kernel=a.lstm_kernel)
+        return LSTMActor(units=a.actor_hidden[0], stochastic=stochastic)
     return MLPActor(hidden=tuple(a.actor_hidden), stochastic=stochastic, frames=a.frames, obs_size=obs_size)
 
 
@@ -178,21 +174,6 @@ def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = T
     final, (carries_in, outs, after) = jax.lax.scan(step, carry, (obs_seq, reset_seq),
                                                     unroll=length if 0 < length <= 32 else 1)
     return carries_in, outs, final, after
-
-
-def fused_unroll(actor: LSTMActor, params, carry, obs_seq, reset_seq):
-    """`unroll`'s outputs and final carry with memory, no gradient, the LSTM's steps in one kernel
-    (docrl_jax/fused_lstm.py) and the head applied to every step at once: (outputs, final carry, carries_after)."""
-    c_seq, h_seq = fused_lstm.sequence(params["params"]["lstm"], carry, obs_seq, reset_seq)
-    outs = _Head(actor.stochastic).apply({"params": jax.lax.stop_gradient(params["params"]["head"])}, h_seq)
-    return outs, (c_seq[-1], h_seq[-1]), (c_seq, h_seq)
-
-
-def uses_fused_lstm(actor: nn.Module, memory: bool) -> bool:
-    """Whether `fused_unroll` runs this actor's stopped-gradient passes (agent.lstm_kernel: pallas, a
-    carry that flows, a width the kernel takes)."""
-    return (isinstance(actor, LSTMActor) and actor.kernel == "pallas" and memory
-            and fused_lstm.applies(actor.units))
 
 
 def expand_flag(flag, like):

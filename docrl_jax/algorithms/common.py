@@ -14,7 +14,7 @@ import optax
 from flax import struct
 
 from docrl_jax.envs import ACTION_SIZE
-from docrl_jax.networks import carry_features, fused_unroll, unroll, uses_fused_lstm
+from docrl_jax.networks import carry_features, unroll
 
 
 @struct.dataclass
@@ -152,25 +152,14 @@ def split_batch(batch: dict, burn_in: int) -> SeqBatch:
                     carry=carry0)
 
 
-def run_actor(actor, params, seq: SeqBatch, memory: bool, differentiable: bool = True):
+def run_actor(actor, params, seq: SeqBatch, memory: bool):
     """Burn the LSTM in from the stored carry without gradient, then run it over the trained steps.
     Returns (outputs [T, B, ...], carries after each trained step's obs [T, B, ...]); the latter is
-    the carry with which the actor reads that step's next obs, for the TD target. With
-    `differentiable` False (a target actor's pass) no gradient flows through either part. The parts
-    without gradient run in one kernel where the actor's `lstm_kernel` says so (networks.fused_unroll)."""
-    carry, burn = seq.carry, seq.burn_obs.shape[0]
-    if uses_fused_lstm(actor, memory):
-        if not differentiable:  # burn-in and trained steps in one pass
-            obs = jnp.concatenate([seq.burn_obs, seq.obs])
-            outs, _, (c_seq, h_seq) = fused_unroll(actor, params, carry, obs, jnp.concatenate([seq.burn_start, seq.start]))
-            return outs[burn:], (c_seq[burn:], h_seq[burn:])
-        if burn > 0:
-            _, carry, _ = fused_unroll(actor, params, carry, seq.burn_obs, seq.burn_start)
-    elif burn > 0:
+    the carry with which the actor reads that step's next obs, for the TD target."""
+    carry = seq.carry
+    if seq.burn_obs.shape[0] > 0:
         _, _, carry, _ = unroll(actor, jax.lax.stop_gradient(params), carry, seq.burn_obs, seq.burn_start, memory)
         carry = jax.lax.stop_gradient(carry)
-    if not differentiable:
-        params = jax.lax.stop_gradient(params)
     _, outs, _, carries_after = unroll(actor, params, carry, seq.obs, seq.start, memory)
     return outs, carries_after
 

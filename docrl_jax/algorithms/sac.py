@@ -43,7 +43,7 @@ def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, 
     hp = HParams.from_agent_config(a_cfg) if hp is None else hp
     alpha = jnp.exp(state.log_alpha)
     seen = a_cfg.critic_carry
-    _, carries_after = run_actor(actor, state.actor, seq, memory, differentiable=False)
+    _, carries_after = run_actor(actor, jax.lax.stop_gradient(state.actor), seq, memory)
     next_carry, (mean, log_std) = actor.apply(state.actor, carries_after, seq.next_obs)
     next_a, next_logp = sample_action(mean, log_std, eps)
     q_next = jnp.min(critic.apply(state.critic_target, critic_view(seq.next_obs, next_carry, seen), next_a),

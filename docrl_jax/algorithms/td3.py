@@ -44,7 +44,7 @@ def critic_loss(critic_params, critic, actor, state: AgentState, seq: SeqBatch, 
 
 
 def _target_next_action(actor, params, seq: SeqBatch, memory):
-    _, carries_after = run_actor(actor, params, seq, memory, differentiable=False)
+    _, carries_after = run_actor(actor, params, seq, memory)
     _, next_action = actor.apply(params, carries_after, seq.next_obs)
     return next_action, carries_after
 

@@ -1,5 +1,5 @@
-"""`auto` values: what `env.num_envs`, `replay.buffer_size`, `train.log_every`, `agent.critic_dtype`,
-`agent.lstm_kernel` and `train.eval_alongside` set to `auto` become on this backend (the AUTO_* tables of
+"""`auto` values: what `env.num_envs`, `replay.buffer_size`, `train.log_every`, `agent.critic_dtype` and
+`train.eval_alongside` set to `auto` become on this backend (the AUTO_* tables of
 docrl_jax/config/sections.py), each with a note that the trainer prints."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ from __future__ import annotations
 import dataclasses
 
 from docrl_jax.config.env import alongside_blocker
-from docrl_jax.config.sections import (AUTO_CRITIC_DTYPE, AUTO_ITERS_PER_CHUNK, AUTO_LSTM_KERNEL, AUTO_NUM_ENVS,
-                                       AUTO_STEPS_PER_ENV, Config, EnvConfig)
+from docrl_jax.config.sections import (AUTO_CRITIC_DTYPE, AUTO_ITERS_PER_CHUNK, AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV,
+                                       Config, EnvConfig)
 from docrl_jax.config.values import bad, coerce
 
 
@@ -19,14 +19,14 @@ _AUTO_PER_ENV = (("replay", "buffer_size", AUTO_STEPS_PER_ENV, "{per} steps x {n
 
 
 def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = None) -> dict:
-    """Replaces `env.num_envs: auto`, `replay.buffer_size: auto`, `train.log_every: auto`,
-    `agent.critic_dtype: auto` and `agent.lstm_kernel: auto` by the values for `backend`
-    (AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV, AUTO_ITERS_PER_CHUNK, AUTO_CRITIC_DTYPE, AUTO_LSTM_KERNEL), and
-    `train.eval_alongside: auto` by true on a GPU/TPU, false on a CPU; returns a new dict."""
+    """Replaces `env.num_envs: auto`, `replay.buffer_size: auto`, `train.log_every: auto` and
+    `agent.critic_dtype: auto` by the values for `backend` (AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV,
+    AUTO_ITERS_PER_CHUNK, AUTO_CRITIC_DTYPE), and `train.eval_alongside: auto` by true on a GPU/TPU,
+    false on a CPU; returns a new dict."""
     def is_auto(sec: str, key: str) -> bool:
         return isinstance(raw.get(sec), dict) and raw[sec].get(key) == "auto"
 
-    if not any(is_auto(sec, key) for sec, key in [("env", "num_envs"), ("agent", "critic_dtype"), ("agent", "lstm_kernel"),
+    if not any(is_auto(sec, key) for sec, key in [("env", "num_envs"), ("agent", "critic_dtype"),
                                                   ("train", "eval_alongside")] + [a[:2] for a in _AUTO_PER_ENV]):
         return raw
     if backend is None:
@@ -42,10 +42,6 @@ def resolve_auto(raw: dict, backend: str | None = None, notes: list | None = Non
         out["agent"]["critic_dtype"] = AUTO_CRITIC_DTYPE[kind]
         if notes is not None:
             notes.append(f"agent.critic_dtype auto -> {AUTO_CRITIC_DTYPE[kind]} ({backend})")
-    if is_auto("agent", "lstm_kernel"):
-        out["agent"]["lstm_kernel"] = AUTO_LSTM_KERNEL.get(backend, "xla")
-        if notes is not None:
-            notes.append(f"agent.lstm_kernel auto -> {out['agent']['lstm_kernel']} ({backend})")
     if is_auto("train", "eval_alongside"):  # whether the rest of the config allows it: settle_eval_alongside
         out["train"]["eval_alongside"] = kind == "gpu"
     # The per-env sizes are multiples of num_envs, so a bad num_envs is reported here, by its own name,

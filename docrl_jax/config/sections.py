@@ -26,10 +26,6 @@ AUTO_ITERS_PER_CHUNK = {"gpu": 100, "cpu": 10}
 # `agent.critic_dtype: auto`: bf16 activations where they are faster (an H100 update: -35 %); on a
 # CPU XLA emulates bf16 matmuls and a td3_lstm iteration is ~10 % slower with them.
 AUTO_CRITIC_DTYPE = {"gpu": "bfloat16", "cpu": "float32"}
-# `agent.lstm_kernel: auto`, by backend: the LSTM's stopped-gradient passes as one Pallas kernel on a GPU,
-# where XLA launches kernels for every step; elsewhere XLA's (a CPU would run the kernel in Pallas'
-# interpreter; the kernel's tiles are a GPU's).
-AUTO_LSTM_KERNEL = {"gpu": "pallas", "cpu": "xla", "tpu": "xla"}
 
 
 @dataclass(frozen=True)
@@ -96,12 +92,6 @@ class AgentConfig:
         "targets and losses stay float32. bfloat16 halves the memory traffic of the "
         "critics' layers and LayerNorms, which is what an update spends its time on "
         "(docs/BENCHMARKS.md, 'What an update costs').", ("float32", "bfloat16"))
-    lstm_kernel: str = documented("xla",
-        "How an update runs the LSTM actor over its sampled sequences where no gradient flows (the burn-in "
-        "and the target actor): xla (one kernel per step and gate op), pallas (every step of a block of "
-        "sequences in one kernel, docrl_jax/fused_lstm.py; on a CPU in Pallas' interpreter, slow), or "
-        "'auto' = pallas on a GPU and xla on a CPU (ours). The same numbers either way, to float rounding.",
-        ("xla", "pallas"))
     n_step: int = documented(1, "TD target over n rewards inside each sampled sequence (1 = the paper's one-step "
                                 "target); never crosses an episode end or the sequence end (common.nstep_targets).")
     lr_end_scale: float = documented(1.0,
