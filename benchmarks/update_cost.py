@@ -121,8 +121,9 @@ def kernel_summary(kernels: list[dict], updates: int, wall_ms: float, top: int =
     ranked = sorted(by_name.items(), key=lambda kv: -kv[1][1])
     kinds = collections.defaultdict(lambda: [0, 0.0])
     for n, (c, t) in ranked:
-        kinds[kernel_kind(n)][0] += c
-        kinds[kernel_kind(n)][1] += t
+        kind = kinds[kernel_kind(n)]
+        kind[0] += c
+        kind[1] += t
     return {"kernels_per_update": round(len(kernels) / updates, 1),
             "busy_ms_per_update": round(busy_us / 1e3 / updates, 4), "wall_ms_per_update": round(wall_ms, 4),
             "top": [row(n, c, t) for n, (c, t) in ranked[:top]],
