@@ -30,7 +30,7 @@ import errno
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
@@ -47,12 +47,40 @@ def _pack(tree: Any) -> dict[str, Any]:
     return {f"{i:05d}": leaf for i, leaf in enumerate(jax.tree.leaves(tree)) if leaf.size}
 
 
-def _abstract_packed(abstract_tree: Any, sharding: jax.sharding.Sharding | None) -> dict[str, Any]:
+@dataclass(frozen=True)
+class OlderLayout:
+    """How a checkpoint written before some state fields existed reads into today's state: the
+    fields' names (`added`, attribute names anywhere in the tree) and the value each of their leaves
+    takes, as those versions behaved (`fill`: ShapeDtypeStruct -> array)."""
+    added: tuple[str, ...]
+    fill: Callable[[Any], np.ndarray]
+
+    def stored_index(self, abstract_tree: Any) -> list[int | None]:
+        """Each leaf's index in such a checkpoint, None for an added one: the leaves after an added
+        leaf sit one place earlier there."""
+        out, i = [], 0
+        for path, _ in jax.tree_util.tree_flatten_with_path(abstract_tree)[0]:
+            if any(getattr(k, "name", None) in self.added for k in path):
+                out.append(None)
+            else:
+                out.append(i)
+                i += 1
+        return out
+
+
+def _stored_index(abstract_tree: Any, older: OlderLayout | None) -> list[int | None]:
+    n = len(jax.tree.leaves(abstract_tree))
+    return list(range(n)) if older is None else older.stored_index(abstract_tree)
+
+
+def _abstract_packed(abstract_tree: Any, sharding: jax.sharding.Sharding | None,
+                     older: OlderLayout | None = None) -> dict[str, Any]:
     # An explicit sharding makes Orbax restore onto this machine's devices, whatever the topology the
     # checkpoint was written on (a GPU run evaluated on a CPU, 8 GPUs resumed on 2, say).
     sharding = sharding or jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
     return {f"{i:05d}": jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding)
-            for i, leaf in enumerate(jax.tree.leaves(abstract_tree)) if _size(leaf.shape)}
+            for i, leaf in zip(_stored_index(abstract_tree, older), jax.tree.leaves(abstract_tree))
+            if i is not None and _size(leaf.shape)}
 
 
 def _size(shape) -> int:
@@ -62,18 +90,26 @@ def _size(shape) -> int:
     return n
 
 
-def _unpack(abstract_tree: Any, packed: dict[str, Any], sharding: jax.sharding.Sharding | None = None) -> Any:
+def _unpack(abstract_tree: Any, packed: dict[str, Any], sharding: jax.sharding.Sharding | None = None,
+            older: OlderLayout | None = None) -> Any:
     leaves, treedef = jax.tree.flatten(abstract_tree)
-    if sharding is not None:  # global arrays as Orbax placed them; empty leaves placed the same way
-        empty = lambda leaf: jax.make_array_from_callback(  # noqa: E731
-            leaf.shape, sharding, lambda index: np.zeros(leaf.shape, leaf.dtype)[index])
-        return jax.tree.unflatten(treedef, [packed[f"{i:05d}"] if _size(leaf.shape) else empty(leaf)
-                                            for i, leaf in enumerate(leaves)])
-    out = [packed[f"{i:05d}"] if _size(leaf.shape) else jnp.zeros(leaf.shape, leaf.dtype)
-           for i, leaf in enumerate(leaves)]
+    index = _stored_index(abstract_tree, older)
+
+    def value(i, leaf):  # as a host array where it is not read from the checkpoint
+        if index[i] is None:
+            return np.asarray(older.fill(leaf), leaf.dtype).reshape(leaf.shape)
+        return packed[f"{index[i]:05d}"] if _size(leaf.shape) else np.zeros(leaf.shape, leaf.dtype)
+
+    if sharding is not None:  # global arrays as Orbax placed them; the others placed the same way
+        def placed(i, leaf):
+            v = value(i, leaf)
+            if isinstance(v, np.ndarray):
+                return jax.make_array_from_callback(leaf.shape, sharding, lambda where: v[where])
+            return v
+        return jax.tree.unflatten(treedef, [placed(i, leaf) for i, leaf in enumerate(leaves)])
     # Via numpy: orbax returns arrays *committed* to a device, while the trainer's own arrays are not,
     # and jit would compile the chunk again for the different placement.
-    return jax.tree.unflatten(treedef, [jnp.asarray(np.asarray(x)) for x in out])
+    return jax.tree.unflatten(treedef, [jnp.asarray(np.asarray(value(i, leaf))) for i, leaf in enumerate(leaves)])
 
 
 def manager(run_dir: str | Path, keep: int | None = None, create: bool = False) -> ocp.CheckpointManager:
@@ -132,19 +168,20 @@ def has_best(mngr: ocp.CheckpointManager, step: int) -> bool:
 
 
 def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, abstract_policy: Any = None,
-            sharding: jax.sharding.Sharding | None = None, item: str = "policy"):
+            sharding: jax.sharding.Sharding | None = None, item: str = "policy", older: OlderLayout | None = None):
     """Restores (state, policy_params, meta); pass None for an item you do not need; `item="best"`
     reads the best policies (same tree as the policy) in place of the final one. With
     `sharding` (the seed axis over several devices, `SeedPlacement.seed_sharding`) every leaf is
     restored as a global array placed by it (collective over processes); without, as an
-    uncommitted array on this process's first device."""
+    uncommitted array on this process's first device. With `older`, the state is read as a checkpoint
+    written before its `added` fields existed."""
     items = {"meta": ocp.args.JsonRestore()}
     if abstract_state is not None:
-        items["state"] = ocp.args.StandardRestore(_abstract_packed(abstract_state, sharding))
+        items["state"] = ocp.args.StandardRestore(_abstract_packed(abstract_state, sharding, older))
     if abstract_policy is not None:
         items[item] = ocp.args.StandardRestore(_abstract_packed(abstract_policy, sharding))
     out = mngr.restore(step, args=ocp.args.Composite(**items))
-    state = _unpack(abstract_state, out["state"], sharding) if abstract_state is not None else None
+    state = _unpack(abstract_state, out["state"], sharding, older) if abstract_state is not None else None
     policy = _unpack(abstract_policy, out[item], sharding) if abstract_policy is not None else None
     return state, policy, out["meta"]
 
@@ -156,31 +193,51 @@ class Restored:
     best: Any                  # the best policies, or None when not asked for or not in the checkpoint
     meta: dict
     skipped: list              # [(step, why)] of newer checkpoints that could not be read
+    older: bool = False        # read in the `older` layout of restore_newest_intact
 
 
 def restore_newest_intact(mngr: ocp.CheckpointManager, abstract_state: Any, sharding=None,
-                          best_shape: Any = None) -> Restored:
+                          best_shape: Any = None, older: OlderLayout | None = None) -> Restored:
     """The newest checkpoint that reads back whole (state, meta and, with `best_shape`, the best
     policies when it holds them), trying older ones when a newer one is damaged (a crash while
-    the disk was full, a file deleted by hand). Raises RunDirError naming every checkpoint tried
-    and why, when none reads back."""
+    the disk was full, a file deleted by hand). A checkpoint whose state does not read in today's
+    layout is read in the `older` one, when given, before it counts as damaged. Raises RunDirError
+    naming every checkpoint tried and why, when none reads back."""
     skipped = []
     for step in sorted(mngr.all_steps(), reverse=True):
         try:
             with_best = best_shape is not None and has_best(mngr, step)
-            state, best, meta = restore(mngr, step, abstract_state=abstract_state, sharding=sharding,
-                                        abstract_policy=best_shape if with_best else None, item="best")
-            if not isinstance(meta, dict) or not {"env_steps", "chunk", "wall_time_s", "pending"} <= set(meta):
-                raise ValueError("its meta/ holds no run record")
+            state, best, meta, was_older = _restore_run(mngr, step, abstract_state, sharding,
+                                                        best_shape if with_best else None, older)
         except Exception as e:  # any unreadable part means the same: try the one before
             unjudged = not_the_data(e, f"checkpoint {step} in {mngr.directory}")
             if unjudged:   # it may be whole: resuming from an older one would throw its progress away
                 raise unjudged from None
             skipped.append((step, short_reason(e)))
             continue
-        return Restored(step, state, best, meta, skipped)
+        return Restored(step, state, best, meta, skipped, was_older)
     tried = "; ".join(f"{s}: {why}" for s, why in skipped) or "none found"
     raise RunDirError(f"no intact checkpoint in {mngr.directory} ({tried})")
+
+
+def _restore_run(mngr, step: int, abstract_state, sharding, best_shape, older: OlderLayout | None) -> tuple:
+    """(state, best, meta, whether read in the `older` layout) of checkpoint `step`, in today's layout
+    or else the older one; a failure in both raises today's error."""
+    def read(layout):
+        state, best, meta = restore(mngr, step, abstract_state=abstract_state, sharding=sharding,
+                                    abstract_policy=best_shape, item="best", older=layout)
+        if not isinstance(meta, dict) or not {"env_steps", "chunk", "wall_time_s", "pending"} <= set(meta):
+            raise ValueError("its meta/ holds no run record")
+        return state, best, meta
+    try:
+        return (*read(None), False)
+    except Exception as today:
+        if older is None:
+            raise
+        try:
+            return (*read(older), True)
+        except Exception:
+            raise today from None
 
 
 def set_aside(mngr: ocp.CheckpointManager, steps: list[int]) -> Path | None:

@@ -65,5 +65,7 @@ def to_meta(best: BestPolicy) -> dict:
 
 
 def from_meta(params: Any, meta: dict) -> BestPolicy:
-    return BestPolicy(params, np.asarray(meta["score"], np.float64), np.asarray(meta["env_steps"], np.int64),
-                      list(meta["evaluation"]))
+    score = np.asarray(meta["score"], np.float64)
+    if score.ndim == 2:  # written when the random-goal success broke ties: (today's score, the tie-break)
+        score = score[:, 0]
+    return BestPolicy(params, score, np.asarray(meta["env_steps"], np.int64), list(meta["evaluation"]))

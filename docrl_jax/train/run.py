@@ -23,7 +23,8 @@ from rich.progress import BarColumn, Progress, TextColumn
 from rich.text import Text
 
 from docrl_jax import checkpoint, memory, runs, sharding
-from docrl_jax.config import Config, to_yaml
+from docrl_jax.config import Config, env_kwargs, to_yaml
+from docrl_jax.envs import make_params
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
@@ -73,6 +74,15 @@ class _Display:
             self.console.print(f"{steps:,} steps  {sps:,.0f} steps/s  {eta}  {line}")
 
 
+def _older_layout(config: Config) -> checkpoint.OlderLayout:
+    """The state fields added since checkpoints were first written, set as runs without them trained:
+    SimState.training_margins, on in every env exactly when the config has a training-only margin
+    (those versions turned the evaluation lanes off then, so no lane needs it off)."""
+    p = make_params(config.env.scenario, **env_kwargs(config))
+    on = p.collision_margin > 0.0 or p.hull_margin > 0.0
+    return checkpoint.OlderLayout(("training_margins",), lambda leaf: np.full(leaf.shape, on, bool))
+
+
 def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Path, console: Console, primary: bool):
     """The newest intact checkpoint's runner state and bookkeeping; damaged newer checkpoints are
     named, skipped and set aside. Returns (state, chunks done, wall seconds before, pending
@@ -80,7 +90,10 @@ def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Pa
     t_cfg = config.train
     restored = checkpoint.restore_newest_intact(
         mngr, state_shape, placement.seed_sharding,
-        best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None)
+        best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None, older=_older_layout(config))
+    if restored.older:
+        console.print(f"checkpoint {restored.step} predates {', '.join(_older_layout(config).added)} in the run's "
+                      "state: resumed with it set as that version trained")
     for step, reason in restored.skipped:
         console.print(f"[yellow]skipped checkpoint {step}:[/] {reason}")
     if restored.skipped:  # out of the way of the steps the resumed run writes again; nothing deleted
