@@ -11,7 +11,9 @@
         meta/     JSON: env_steps, chunk, wall_time_s, config name, and the best policies' record
 
 Orbax cannot write zero-size arrays (MJX keeps a few), so a tree is stored as its non-empty leaves
-keyed by flat index and rebuilt from an abstract tree of the same structure on restore.
+keyed by flat index and rebuilt from an abstract tree of the same structure on restore. A state
+field added since a checkpoint was written shifts those indices: `OlderLayout` names such fields,
+and the state reads back with them filled as the older version ran.
 
 Arrays are stored as global arrays, whatever devices held them: a run whose seeds were split over
 several devices or processes (docrl_jax.sharding) writes one checkpoint (every process its shards,
