@@ -88,11 +88,12 @@ def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Pa
     named, skipped and set aside. Returns (state, chunks done, wall seconds before, pending
     statistics, best policies or None, the metrics.csv rows of the last evaluation kept)."""
     t_cfg = config.train
+    older = _older_layout(config)
     restored = checkpoint.restore_newest_intact(
         mngr, state_shape, placement.seed_sharding,
-        best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None, older=_older_layout(config))
+        best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None, older=older)
     if restored.older:
-        console.print(f"checkpoint {restored.step} predates {', '.join(_older_layout(config).added)} in the run's "
+        console.print(f"checkpoint {restored.step} predates {', '.join(older.added)} in the run's "
                       "state: resumed with it set as that version trained")
     for step, reason in restored.skipped:
         console.print(f"[yellow]skipped checkpoint {step}:[/] {reason}")
