@@ -44,8 +44,12 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         # the policy average's falling rate: measured for td3_lstm only (BENCHMARKS.md, "Why the defaults")
         assert c.agent.policy_average_tau_start == (0.01 if name == "td3_lstm" else 0.0)
         assert t.updates_per_step * t.total_env_steps == 200_000_000
-        # training starts near the risers (the paper's W-A start is 1.05 m from one): measured for the LSTM agents only
-        assert dict(c.env.overrides).get("goal_clearance", 1.0) == (0.6 if name.endswith("_lstm") else 1.0)
+        # training starts near the risers (the paper's W-A start is 1.05 m from one): measured for the LSTM agents
+        # only; td3_lstm's 0.7 leaves room for its training margin of 0.15 m (BENCHMARKS.md, "Time to 90 % and
+        # every seed"), the one config with a margin here
+        env = dict(c.env.overrides)
+        assert env.get("goal_clearance", 1.0) == {"td3_lstm": 0.7, "sac_lstm": 0.6}.get(name, 1.0)
+        assert env.get("collision_margin", 0.0) == (0.15 if name == "td3_lstm" else 0.0)
         # the controller's integral outside its band (ROBUSTNESS.md): measured for the LSTM agents only
         assert dict(c.env.overrides).get("vel_i_rate", 0.0) == (0.3 if name.endswith("_lstm") else 0.0)
     # Evaluations alongside training on a GPU for the 4,096-env defaults (BENCHMARKS.md); the paper
