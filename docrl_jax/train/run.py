@@ -23,7 +23,7 @@ from rich.progress import BarColumn, Progress, TextColumn
 from rich.text import Text
 
 from docrl_jax import checkpoint, memory, runs, sharding
-from docrl_jax.config import Config, env_kwargs, to_yaml
+from docrl_jax.config import Config, env_kwargs, to_dict, to_yaml
 from docrl_jax.envs import make_params
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
@@ -34,19 +34,48 @@ from docrl_jax.train.programs import compile_programs
 __all__ = ["check_run_dir", "run"]
 
 
-def check_run_dir(run_dir: Path, resume: bool) -> None:
+# What a resume may change of the run's config (--set): its length, where it runs, and how often it
+# evaluates, checkpoints and records, none of which is in the checkpoints or changes what was trained.
+# Every other key is the run's recipe or sets the shape of what its checkpoints hold.
+RESUMABLE = ("name", "train.total_env_steps", "train.devices", "train.eval_every", "train.eval_every_minutes",
+             "train.checkpoint_every", "train.checkpoint_every_minutes", "train.keep_checkpoints",
+             "train.video_every")
+
+
+def check_run_dir(run_dir: Path, resume: bool, config: Config | None = None) -> None:
     """Refuses what would lose or mix up a run: a new run into a directory that holds one (or a
-    sweep), a resume of a sweep, of a directory without a run, or of a run with no checkpoint."""
+    sweep), a resume of a sweep, of a directory without a run, or of a run with no checkpoint, and a
+    resume whose `config` differs from the run's own but in RESUMABLE keys (before anything compiles
+    and before the run's config.yaml is written over)."""
     if not resume:
         runs.check_fresh(run_dir)
         return
     if (run_dir / runs.SWEEP_FILE).is_file():
         raise RunDirError(f"{str(run_dir)!r} is a sweep: sweeps write no checkpoints and cannot be resumed; "
                           f"train one combination with --config {run_dir}/cNN/config.yaml")
-    runs.read_config(run_dir)  # clear errors for a missing dir or config
+    own = runs.read_config(run_dir)  # clear errors for a missing dir or config
     if checkpoint.latest_step(run_dir) is None:
         raise RunDirError(f"{str(run_dir)!r} has no checkpoint to resume from (the run stopped before its "
                           f"first); start it again with --config and a fresh --run-dir")
+    if config is not None:
+        changed = [f"{key} ({was!r} -> {now!r})" for key, (was, now) in _differences(own, config).items()
+                   if key not in RESUMABLE]
+        if changed:
+            raise ConfigError(f"a resume continues the run as it was trained and cannot change {', '.join(changed)}; "
+                              f"it may change {', '.join(RESUMABLE[1:])}. To train otherwise, start a new run: "
+                              f"--config {run_dir / runs.CONFIG_FILE} --set ...")
+
+
+def _differences(a: Config, b: Config) -> dict[str, tuple]:
+    """{'section.key': (a's value, b's value)} where the two configs differ."""
+    def flat(c):
+        out = {}
+        for key, value in to_dict(c).items():
+            items = value.items() if isinstance(value, dict) else [(None, value)]
+            out.update({(f"{key}.{k}" if k else key): v for k, v in items})
+        return out
+    fa, fb = flat(a), flat(b)
+    return {k: (fa.get(k), fb.get(k)) for k in sorted(fa.keys() | fb.keys()) if fa.get(k) != fb.get(k)}
 
 
 class _Display:
@@ -160,7 +189,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     startup = {"launch_to_run_s": round(time.time() - launch_time, 2)}
     # The command line checked the directory before its imports; a caller from Python gets the same check
     # here, before anything is written (a new run would overwrite a run's config and metrics).
-    check_run_dir(run_dir, resume)
+    check_run_dir(run_dir, resume, config)
     t_cfg = config.train
     placement = sharding.seed_placement(t_cfg)  # the device plan, resolved once for the whole run
     memory.check_memory(config, placement.devices)

@@ -350,6 +350,29 @@ def test_resume_with_no_intact_checkpoint_is_one_clear_error():
     assert "no intact checkpoint" in text and "16000:" in text and "8000:" in text and len(text.splitlines()) <= 6
 
 
+def test_a_resume_that_would_change_the_recipe_is_refused_before_compiling(monkeypatch, capsys):
+    """--resume --set of a key that is not train.total_env_steps, the cadences or the devices (here the
+    envs, which the checkpoints' arrays are shaped by, and a learning rate) is one line naming each key
+    and what a resume may change, before any compile, with the run's config.yaml kept as it was."""
+    src = finished_run()
+    d = tmp_dir("resume_changed_recipe")
+    shutil.rmtree(d)
+    shutil.copytree(src, d)
+    kept = (d / "config.yaml").read_text()
+
+    def no_compile(*a, **k):
+        raise AssertionError("compiled")
+    monkeypatch.setattr(train_run, "compile_programs", no_compile)
+    args = ["--run-dir", str(d), "--resume", "--no-progress", "--compile-cache", "off",
+            "--set", "env.num_envs=8", "--set", "agent.actor_lr=0.01", "--set", "train.eval_every=4000"]
+    assert cli.main(args) == cli.EXIT_CONFIG
+    out = " ".join(capsys.readouterr().out.split())
+    assert re.search(r"cannot change agent.actor_lr \(0.001 -> 0.01\), env.num_envs \(\d+ -> 8\); it may change "
+                     r"train.total_env_steps, train.devices, train.eval_every", out), out
+    assert "train.eval_every (" not in out and "Traceback" not in out
+    assert (d / "config.yaml").read_text() == kept and checkpoint.latest_step(d) == 16000
+
+
 def test_a_device_out_of_memory_is_not_taken_for_a_damaged_checkpoint(monkeypatch):
     """Running out of GPU memory while reading says nothing of the checkpoint: loading a policy does not
     call it corrupt, and resuming does not skip the newest checkpoint for an older one (which would
