@@ -51,7 +51,7 @@ def test_packaged_configs_load_with_the_contract_keys(name):
         assert env.get("goal_clearance", 1.0) == {"td3_lstm": 0.7, "sac_lstm": 0.6}.get(name, 1.0)
         assert env.get("collision_margin", 0.0) == (0.15 if name == "td3_lstm" else 0.0)
         # the controller's integral outside its band (ROBUSTNESS.md): measured for the LSTM agents only
-        assert dict(c.env.overrides).get("vel_i_rate", 0.0) == (0.3 if name.endswith("_lstm") else 0.0)
+        assert env.get("vel_i_rate", 0.0) == (0.3 if name.endswith("_lstm") else 0.0)
     # Evaluations alongside training on a GPU for the 4,096-env defaults (BENCHMARKS.md); the paper
     # recipes keep their evaluations between chunks.
     assert c.train.eval_alongside == (not name.endswith("_paper") and jax.default_backend() != "cpu")

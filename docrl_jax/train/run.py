@@ -61,8 +61,9 @@ def check_run_dir(run_dir: Path, resume: bool, config: Config | None = None) -> 
         changed = [f"{key} ({was!r} -> {now!r})" for key, (was, now) in _differences(own, config).items()
                    if key not in RESUMABLE]
         if changed:
+            may = ", ".join(key for key in RESUMABLE if key != "name")
             raise ConfigError(f"a resume continues the run as it was trained and cannot change {', '.join(changed)}; "
-                              f"it may change {', '.join(RESUMABLE[1:])}. To train otherwise, start a new run: "
+                              f"it may change {may}. To train otherwise, start a new run: "
                               f"--config {run_dir / runs.CONFIG_FILE} --set ...")
 
 
