@@ -14,12 +14,22 @@
 #     of each run evaluated; its compiled trials are kept in JAX's cache of the round (eval_cache)
 # The first call installs the carried wheels (WHEELS, default .whl; with the tracked tree grown past ~30 MB,
 # carry .whl_gpu from benchmarks/slim_wheels.py instead: the carry limit is 64 MiB), copies the code aside and starts every lane in its
-# own process session; each later call only waits. Every call waits up to DEADLINE_S (default 540),
+# own process session; each later call only waits. Call the later ones with --wait first
+# (`bash benchmarks/gpu_lanes.sh --wait ROUND [DEADLINE_S]`): where the machine went back between calls and
+# this one is fresh, --wait stops at once with one line, where a plain call would start the round again from
+# its first seed on device time (start it again with FIRST/COUNT at the first seed not yet packed). Every call waits up to DEADLINE_S (default 540),
 # prints the lanes' times, the logs' last lines, the robustness tables and the evaluator's successes, and
 # copies the packed results (one archive per launch and per evaluation) to $OUT.
 set -u
+wait_only=0; [ "${1:-}" = "--wait" ] && { wait_only=1; shift; }
 round=$1 deadline=${2:-540}
-R=/tmp/round_$(basename "$round" .sh); mkdir -p $R/runs $R/eval $R/pack
+R=/tmp/round_$(basename "$round" .sh)
+if [ $wait_only = 1 ] && [ ! -e $R/started ]; then
+  echo "gpu_lanes --wait: $(basename "$round" .sh) has not started on this machine (a fresh one: the last went back);" \
+       "start it again without --wait, FIRST/COUNT at the first seed not yet packed" >&2
+  exit 3
+fi
+mkdir -p $R/runs $R/eval $R/pack
 source "$round"
 if [ ! -e $R/started ]; then
   touch $R/started
