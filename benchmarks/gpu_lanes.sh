@@ -17,7 +17,8 @@
 # own process session; each later call only waits. Call the later ones with --wait first
 # (`bash benchmarks/gpu_lanes.sh --wait ROUND [DEADLINE_S]`): where the machine went back between calls and
 # this one is fresh, --wait stops at once with one line, where a plain call would start the round again from
-# its first seed on device time (start it again with FIRST/COUNT at the first seed not yet packed). Every call waits up to DEADLINE_S (default 540),
+# its first seed on device time (start it again with FIRST/COUNT at the first seed not yet packed).
+# Every call waits up to DEADLINE_S (default 540),
 # prints the lanes' times, the logs' last lines, the robustness tables and the evaluator's successes, and
 # copies the packed results (one archive per launch and per evaluation) to $OUT.
 set -u
