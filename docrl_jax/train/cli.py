@@ -149,10 +149,12 @@ def _resolve(args, notes: list | None = None) -> tuple[Config, Path]:
                               f"{'--config' if args.config else '--tank'} (use --set to change e.g. "
                               "train.total_env_steps)")
         from docrl_jax import runs
-        from docrl_jax.train.run import check_run_dir
+        from docrl_jax.train.run import check_resume_changes, check_run_dir
         run_dir = Path(args.run_dir)
         check_run_dir(run_dir, resume=True)
-        return load_config(run_dir / runs.CONFIG_FILE, args.set, notes=notes), run_dir
+        config = load_config(run_dir / runs.CONFIG_FILE, args.set, notes=notes)
+        check_resume_changes(run_dir, config)   # before the launch's summary and its stored programs' prefetch
+        return config, run_dir
     if not args.config:
         raise ConfigError("--config is required (a packaged name such as td3_lstm, or a YAML path)")
     overrides = parse_overrides(args.set)

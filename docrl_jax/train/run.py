@@ -31,7 +31,7 @@ from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadenc
                                   make_console, run_chunks, schedule)
 from docrl_jax.train.programs import compile_programs
 
-__all__ = ["check_run_dir", "run"]
+__all__ = ["check_resume_changes", "check_run_dir", "run"]
 
 
 # What a resume may change of the run's config (--set): its length, where it runs, and how often it
@@ -58,13 +58,20 @@ def check_run_dir(run_dir: Path, resume: bool, config: Config | None = None) -> 
         raise RunDirError(f"{str(run_dir)!r} has no checkpoint to resume from (the run stopped before its "
                           f"first); start it again with --config and a fresh --run-dir")
     if config is not None:
-        changed = [f"{key} ({was!r} -> {now!r})" for key, (was, now) in _differences(own, config).items()
-                   if key not in RESUMABLE]
-        if changed:
-            may = ", ".join(key for key in RESUMABLE if key != "name")
-            raise ConfigError(f"a resume continues the run as it was trained and cannot change {', '.join(changed)}; "
-                              f"it may change {may}. To train otherwise, start a new run: "
-                              f"--config {run_dir / runs.CONFIG_FILE} --set ...")
+        check_resume_changes(run_dir, config, own)
+
+
+def check_resume_changes(run_dir: Path, config: Config, own: Config | None = None) -> None:
+    """Refuses a resume whose `config` differs from the run's own (`own`, else read from `run_dir`) but in
+    RESUMABLE keys: one line naming each key and what a resume may change."""
+    own = runs.read_config(run_dir) if own is None else own
+    changed = [f"{key} ({was!r} -> {now!r})" for key, (was, now) in _differences(own, config).items()
+               if key not in RESUMABLE]
+    if changed:
+        may = ", ".join(key for key in RESUMABLE if key != "name")
+        raise ConfigError(f"a resume continues the run as it was trained and cannot change {', '.join(changed)}; "
+                          f"it may change {may}. To train otherwise, start a new run: "
+                          f"--config {run_dir / runs.CONFIG_FILE} --set ...")
 
 
 def _differences(a: Config, b: Config) -> dict[str, tuple]:
