@@ -12,8 +12,9 @@
 
 Orbax cannot write zero-size arrays (MJX keeps a few), so a tree is stored as its non-empty leaves
 keyed by flat index and rebuilt from an abstract tree of the same structure on restore. A state
-field added since a checkpoint was written shifts those indices: `OlderLayout` names such fields,
-and the state reads back with them filled as the older version ran.
+field added since a checkpoint was written shifts those indices, and a field stored in another shape
+then no longer reads: `OlderLayout` names such fields, and the state reads back with them filled as
+the older version ran (or, for values the env recomputes before reading them, with zeros).
 
 Arrays are stored as global arrays, whatever devices held them: a run whose seeds were split over
 several devices or processes (docrl_jax.sharding) writes one checkpoint (every process its shards,
@@ -51,11 +52,15 @@ def _pack(tree: Any) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class OlderLayout:
-    """How a checkpoint written before some state fields existed reads into today's state: the
-    fields' names (`added`, attribute names anywhere in the tree) and the value each of their leaves
-    takes, as those versions behaved (`fill`: ShapeDtypeStruct -> array)."""
-    added: tuple[str, ...]
-    fill: Callable[[Any], np.ndarray]
+    """How a checkpoint written by an earlier version reads into today's state. `added`: fields (attribute
+    names anywhere in the tree) that did not exist then, whose leaves take `fill` (ShapeDtypeStruct ->
+    array), as those versions behaved. `reshaped`: fields stored then in another shape, as (name,
+    today's shape -> the stored one) pairs; their stored leaves are read in that shape and dropped, and
+    they take zeros, so only values that the env step computes before it reads them belong here."""
+    what: str                                   # what the layout predates, for the resume's message
+    added: tuple[str, ...] = ()
+    fill: Callable[[Any], np.ndarray] | None = None
+    reshaped: tuple[tuple[str, Callable[[tuple], tuple]], ...] = ()
 
     def stored_index(self, abstract_tree: Any) -> list[int | None]:
         """Each leaf's index in such a checkpoint, None for an added one: the leaves after an added
@@ -69,6 +74,12 @@ class OlderLayout:
                 i += 1
         return out
 
+    def stored_shapes(self, abstract_tree: Any) -> list[Callable[[tuple], tuple] | None]:
+        """Each leaf's `reshaped` rule (today's shape -> the stored one), None for a leaf stored as it is."""
+        rules = dict(self.reshaped)
+        return [next((rules[k.name] for k in path if getattr(k, "name", None) in rules), None)
+                for path, _ in jax.tree_util.tree_flatten_with_path(abstract_tree)[0]]
+
 
 def _stored_index(abstract_tree: Any, older: OlderLayout | None) -> list[int | None]:
     n = len(jax.tree.leaves(abstract_tree))
@@ -80,9 +91,12 @@ def _abstract_packed(abstract_tree: Any, sharding: jax.sharding.Sharding | None,
     # An explicit sharding makes Orbax restore onto this machine's devices, whatever the topology the
     # checkpoint was written on (a GPU run evaluated on a CPU, 8 GPUs resumed on 2, say).
     sharding = sharding or jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
-    return {f"{i:05d}": jax.ShapeDtypeStruct(leaf.shape, leaf.dtype, sharding=sharding)
-            for i, leaf in zip(_stored_index(abstract_tree, older), jax.tree.leaves(abstract_tree))
-            if i is not None and _size(leaf.shape)}
+    leaves = jax.tree.leaves(abstract_tree)
+    shapes = [leaf.shape for leaf in leaves] if older is None else [
+        leaf.shape if rule is None else rule(leaf.shape) for leaf, rule in zip(leaves, older.stored_shapes(abstract_tree))]
+    return {f"{i:05d}": jax.ShapeDtypeStruct(shape, leaf.dtype, sharding=sharding)
+            for i, leaf, shape in zip(_stored_index(abstract_tree, older), leaves, shapes)
+            if i is not None and _size(shape)}
 
 
 def _size(shape) -> int:
@@ -96,11 +110,14 @@ def _unpack(abstract_tree: Any, packed: dict[str, Any], sharding: jax.sharding.S
             older: OlderLayout | None = None) -> Any:
     leaves, treedef = jax.tree.flatten(abstract_tree)
     index = _stored_index(abstract_tree, older)
+    reshaped = [None] * len(leaves) if older is None else older.stored_shapes(abstract_tree)
 
     def value(i, leaf):  # as a host array where it is not read from the checkpoint
         if index[i] is None:
             return np.asarray(older.fill(leaf), leaf.dtype).reshape(leaf.shape)
-        return packed[f"{index[i]:05d}"] if _size(leaf.shape) else np.zeros(leaf.shape, leaf.dtype)
+        if reshaped[i] is not None or not _size(leaf.shape):
+            return np.zeros(leaf.shape, leaf.dtype)
+        return packed[f"{index[i]:05d}"]
 
     if sharding is not None:  # global arrays as Orbax placed them; the others placed the same way
         def placed(i, leaf):
@@ -175,8 +192,8 @@ def restore(mngr: ocp.CheckpointManager, step: int, abstract_state: Any = None, 
     reads the best policies (same tree as the policy) in place of the final one. With
     `sharding` (the seed axis over several devices, `SeedPlacement.seed_sharding`) every leaf is
     restored as a global array placed by it (collective over processes); without, as an
-    uncommitted array on this process's first device. With `older`, the state is read as a checkpoint
-    written before its `added` fields existed."""
+    uncommitted array on this process's first device. With `older`, the state is read in that earlier
+    version's layout."""
     items = {"meta": ocp.args.JsonRestore()}
     if abstract_state is not None:
         items["state"] = ocp.args.StandardRestore(_abstract_packed(abstract_state, sharding, older))
@@ -195,21 +212,21 @@ class Restored:
     best: Any                  # the best policies, or None when not asked for or not in the checkpoint
     meta: dict
     skipped: list              # [(step, why)] of newer checkpoints that could not be read
-    older: bool = False        # read in the `older` layout of restore_newest_intact
+    older: OlderLayout | None = None   # the earlier layout it was read in (restore_newest_intact's `older`)
 
 
 def restore_newest_intact(mngr: ocp.CheckpointManager, abstract_state: Any, sharding=None,
-                          best_shape: Any = None, older: OlderLayout | None = None) -> Restored:
+                          best_shape: Any = None, older: tuple[OlderLayout, ...] = ()) -> Restored:
     """The newest checkpoint that reads back whole (state, meta and, with `best_shape`, the best
     policies when it holds them), trying older ones when a newer one is damaged (a crash while
     the disk was full, a file deleted by hand). A checkpoint whose state does not read in today's
-    layout is read in the `older` one, when given, before it counts as damaged. Raises RunDirError
+    layout is read in each `older` one in turn, before it counts as damaged. Raises RunDirError
     naming every checkpoint tried and why, when none reads back."""
     skipped = []
     for step in sorted(mngr.all_steps(), reverse=True):
         try:
             with_best = best_shape is not None and has_best(mngr, step)
-            state, best, meta, was_older = _restore_run(mngr, step, abstract_state, sharding,
+            state, best, meta, layout = _restore_run(mngr, step, abstract_state, sharding,
                                                         best_shape if with_best else None, older)
         except Exception as e:  # any unreadable part means the same: try the one before
             unjudged = not_the_data(e, f"checkpoint {step} in {mngr.directory}")
@@ -217,14 +234,14 @@ def restore_newest_intact(mngr: ocp.CheckpointManager, abstract_state: Any, shar
                 raise unjudged from None
             skipped.append((step, short_reason(e)))
             continue
-        return Restored(step, state, best, meta, skipped, was_older)
+        return Restored(step, state, best, meta, skipped, layout)
     tried = "; ".join(f"{s}: {why}" for s, why in skipped) or "none found"
     raise RunDirError(f"no intact checkpoint in {mngr.directory} ({tried})")
 
 
-def _restore_run(mngr, step: int, abstract_state, sharding, best_shape, older: OlderLayout | None) -> tuple:
-    """(state, best, meta, whether read in the `older` layout) of checkpoint `step`, in today's layout
-    or else the older one; a failure in both raises today's error."""
+def _restore_run(mngr, step: int, abstract_state, sharding, best_shape, older: tuple[OlderLayout, ...]) -> tuple:
+    """(state, best, meta, the earlier layout it was read in or None) of checkpoint `step`, in today's
+    layout or else the first of the `older` ones that reads; a failure in all raises today's error."""
     def read(layout):
         state, best, meta = restore(mngr, step, abstract_state=abstract_state, sharding=sharding,
                                     abstract_policy=best_shape, item="best", older=layout)
@@ -232,14 +249,14 @@ def _restore_run(mngr, step: int, abstract_state, sharding, best_shape, older: O
             raise ValueError("its meta/ holds no run record")
         return state, best, meta
     try:
-        return (*read(None), False)
+        return (*read(None), None)
     except Exception as today:
-        if older is None:
-            raise
-        try:
-            return (*read(older), True)
-        except Exception:
-            raise today from None
+        for layout in older:
+            try:
+                return (*read(layout), layout)
+            except Exception:
+                continue
+        raise today from None
 
 
 def set_aside(mngr: ocp.CheckpointManager, steps: list[int]) -> Path | None:

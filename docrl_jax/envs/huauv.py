@@ -103,7 +103,7 @@ class EnvState:
     info: dict[str, Any]
 
 
-def _scene_path(scenario: int) -> str:
+def scene_path(scenario: int) -> str:
     return str(resource_dir("assets") / (layouts.SCENE if scenario == 0 else f"scenario_{scenario}.xml"))
 
 
@@ -115,7 +115,7 @@ class HUAUVEnv:
     def __init__(self, params: EnvParams):
         self.params = params
         self.observation_size = params.observation_size
-        self.mj_model = mujoco.MjModel.from_xml_path(_scene_path(params.scenario))
+        self.mj_model = mujoco.MjModel.from_xml_path(scene_path(params.scenario))
         self.mj_model.opt.timestep = params.physics_dt
         # This process's first device: MJX's default, jax.devices()[0], belongs to process 0 in a
         # multi-process run (docrl_jax.sharding); on one process the two are the same.

@@ -243,8 +243,8 @@ def plot_figure3(eval_dirs: Sequence, scenario: int, path, max_trajectories: int
     without seeds (a baseline such as BBA) contributes its only trajectories."""
     import json
     import mujoco
-    from docrl_jax.envs.huauv import _scene_path
-    solids = scene_solids(mujoco.MjModel.from_xml_path(_scene_path(scenario)))
+    from docrl_jax.envs.huauv import scene_path
+    solids = scene_solids(mujoco.MjModel.from_xml_path(scene_path(scenario)))
     eval_dirs = [Path(d) for d in eval_dirs]
     if not eval_dirs:
         raise ValueError("plot_figure3: no evaluation directories given")

@@ -16,6 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import jax
+import mujoco
 import numpy as np
 from rich.console import Console, Group
 from rich.live import Live
@@ -25,6 +26,7 @@ from rich.text import Text
 from docrl_jax import checkpoint, memory, runs, sharding
 from docrl_jax.config import Config, env_kwargs, to_dict, to_yaml
 from docrl_jax.envs import make_params
+from docrl_jax.envs.huauv import scene_path
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
@@ -111,13 +113,20 @@ class _Display:
             self.console.print(f"{steps:,} steps  {sps:,.0f} steps/s  {eta}  {line}")
 
 
-def _older_layout(config: Config) -> checkpoint.OlderLayout:
-    """The state fields added since checkpoints were first written, set as runs without them trained:
-    SimState.training_margins, on in every env exactly when the config has a training-only margin
-    (those versions turned the evaluation lanes off then, so no lane needs it off)."""
+def _older_layouts(config: Config) -> tuple[checkpoint.OlderLayout, ...]:
+    """The layouts of the run states earlier versions checkpointed, newest first. Before the scenes
+    factored the mass matrix sparse (assets/common.xml), MJX kept it and its factor as dense nv x nv
+    matrices and no inverse diagonal; every env step computes all three before it reads them. Before
+    that, SimState.training_margins did not exist either: on in every env exactly when the config has a
+    training-only margin (those versions turned the evaluation lanes off then, so no lane needs it off)."""
     p = make_params(config.env.scenario, **env_kwargs(config))
     on = p.collision_margin > 0.0 or p.hull_margin > 0.0
-    return checkpoint.OlderLayout(("training_margins",), lambda leaf: np.full(leaf.shape, on, bool))
+    nv = mujoco.MjModel.from_xml_path(scene_path(p.scenario)).nv
+    dense = (("M", lambda shape: (*shape[:-1], nv, nv)), ("qLD", lambda shape: (*shape[:-1], nv, nv)),
+             ("qLDiagInv", lambda shape: (*shape[:-1], 0)))
+    return (checkpoint.OlderLayout("the sparse mass matrix", reshaped=dense),
+            checkpoint.OlderLayout("the sparse mass matrix and SimState.training_margins", ("training_margins",),
+                                   lambda leaf: np.full(leaf.shape, on, bool), reshaped=dense))
 
 
 def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Path, console: Console, primary: bool):
@@ -125,13 +134,12 @@ def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Pa
     named, skipped and set aside. Returns (state, chunks done, wall seconds before, pending
     statistics, best policies or None, the metrics.csv rows of the last evaluation kept)."""
     t_cfg = config.train
-    older = _older_layout(config)
     restored = checkpoint.restore_newest_intact(
         mngr, state_shape, placement.seed_sharding,
-        best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None, older=older)
+        best_shape=state_shape.agent.actor_average if t_cfg.track_best_policy else None, older=_older_layouts(config))
     if restored.older:
-        console.print(f"checkpoint {restored.step} predates {', '.join(older.added)} in the run's "
-                      "state: resumed with it set as that version trained")
+        console.print(f"checkpoint {restored.step} predates {restored.older.what}: resumed with the run's state "
+                      "read as that version wrote it")
     for step, reason in restored.skipped:
         console.print(f"[yellow]skipped checkpoint {step}:[/] {reason}")
     if restored.skipped:  # out of the way of the steps the resumed run writes again; nothing deleted

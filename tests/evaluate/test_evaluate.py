@@ -139,8 +139,8 @@ def test_trajectory_figure(tmp_path, env, oracle_trials):
 
 def test_scene_solids_scenario_3():
     import mujoco
-    from docrl_jax.envs.huauv import _scene_path
-    s = plotting.scene_solids(mujoco.MjModel.from_xml_path(_scene_path(3)))
+    from docrl_jax.envs.huauv import scene_path
+    s = plotting.scene_solids(mujoco.MjModel.from_xml_path(scene_path(3)))
     assert s["tank"] == pytest.approx(4.9) and s["floor_top"] == pytest.approx(-2.0)
     assert len(s["boxes"]) + len(s["capsules"]) == 15
 
