@@ -227,7 +227,7 @@ def restore_newest_intact(mngr: ocp.CheckpointManager, abstract_state: Any, shar
         try:
             with_best = best_shape is not None and has_best(mngr, step)
             state, best, meta, layout = _restore_run(mngr, step, abstract_state, sharding,
-                                                        best_shape if with_best else None, older)
+                                                     best_shape if with_best else None, older)
         except Exception as e:  # any unreadable part means the same: try the one before
             unjudged = not_the_data(e, f"checkpoint {step} in {mngr.directory}")
             if unjudged:   # it may be whole: resuming from an older one would throw its progress away
