@@ -111,8 +111,8 @@ def test_medium_forces_buoyancy_drag_and_free_fall():
 def test_every_scene_factors_its_mass_matrix_sparse_and_mjx_steps_as_mujoco_does(env_fns):
     """assets/common.xml sets jacobian="sparse" (MJX's element-wise factorisation instead of its dense
     GPU path of batched Cholesky and triangular solves): every scene loads it, and MJX's step of the
-    env's own model then follows MuJoCo's C step of the same model (float64), a tumbling, pushed body
-    whose mass matrix changes with its orientation at every step."""
+    env's own model then follows MuJoCo's C step of the same model (float64): a tumbling body, pushed and
+    turned, so that every one of its 6 dofs moves."""
     for scene in ("procedural.xml", "scenario_1.xml", "scenario_2.xml", "scenario_3.xml"):
         model = mujoco.MjModel.from_xml_path(str(resource_dir("assets") / scene))
         assert model.opt.jacobian == mujoco.mjtJacobian.mjJAC_SPARSE, scene
