@@ -86,14 +86,19 @@ def _stored_index(abstract_tree: Any, older: OlderLayout | None) -> list[int | N
     return list(range(n)) if older is None else older.stored_index(abstract_tree)
 
 
+def _stored_shapes(abstract_tree: Any, older: OlderLayout | None) -> list[Callable[[tuple], tuple] | None]:
+    n = len(jax.tree.leaves(abstract_tree))
+    return [None] * n if older is None else older.stored_shapes(abstract_tree)
+
+
 def _abstract_packed(abstract_tree: Any, sharding: jax.sharding.Sharding | None,
                      older: OlderLayout | None = None) -> dict[str, Any]:
     # An explicit sharding makes Orbax restore onto this machine's devices, whatever the topology the
     # checkpoint was written on (a GPU run evaluated on a CPU, 8 GPUs resumed on 2, say).
     sharding = sharding or jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
     leaves = jax.tree.leaves(abstract_tree)
-    shapes = [leaf.shape for leaf in leaves] if older is None else [
-        leaf.shape if rule is None else rule(leaf.shape) for leaf, rule in zip(leaves, older.stored_shapes(abstract_tree))]
+    shapes = [leaf.shape if rule is None else rule(leaf.shape)
+              for leaf, rule in zip(leaves, _stored_shapes(abstract_tree, older))]
     return {f"{i:05d}": jax.ShapeDtypeStruct(shape, leaf.dtype, sharding=sharding)
             for i, leaf, shape in zip(_stored_index(abstract_tree, older), leaves, shapes)
             if i is not None and _size(shape)}
@@ -110,7 +115,7 @@ def _unpack(abstract_tree: Any, packed: dict[str, Any], sharding: jax.sharding.S
             older: OlderLayout | None = None) -> Any:
     leaves, treedef = jax.tree.flatten(abstract_tree)
     index = _stored_index(abstract_tree, older)
-    reshaped = [None] * len(leaves) if older is None else older.stored_shapes(abstract_tree)
+    reshaped = _stored_shapes(abstract_tree, older)
 
     def value(i, leaf):  # as a host array where it is not read from the checkpoint
         if index[i] is None:
