@@ -1,4 +1,5 @@
-"""The 10-seed table of benchmarks/rounds/every_seed.sh (issue 47) from the round's packed results.
+"""The 10-seed table of benchmarks/rounds/every_seed.sh (issue 47) from the round's packed results; also the
+launches of benchmarks/rounds/recipe_end.sh (named RECIPE_sI: one table per recipe).
 
     python3 benchmarks/every_seed_table.py round_every_seed.tar [--out every_seed.md]
     python3 benchmarks/every_seed_table.py DIR        (a folder holding pack/, or the pack folder itself)
@@ -178,8 +179,10 @@ def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
                  " / ".join(pct(x) for x in r["train_final"]) if r["train_final"] else "–", best]
         cells += [pair(r[f"eval_{w}"], s) for w in ("final", "best") for s in SCENARIO_COLUMNS]
         lines.append("| " + " | ".join(cells) + " |")
-    out = [f"# Every seed, every time: {len(launches)} launches of `python -m docrl_jax.train --config td3_lstm`"
-           + (f", side {side}" if side != "new" else "") + (f" ({gpu})" if gpu else ""), "", *lines, ""]
+    default = side in ("new", "old")   # every_seed.sh's sides; recipe_end.sh's are the recipes
+    recipe = "td3_lstm" if default else side
+    out = [f"# Every seed, every time: {len(launches)} launches of `python -m docrl_jax.train --config {recipe}`"
+           + (f", side {side}" if side == "old" else "") + (f" ({gpu})" if gpu else ""), "", *lines, ""]
     for kind, rows in (("warm", [r for r in launches if r["cold"] is False]),
                        ("cold", [r for r in launches if r["cold"]]), ("all", launches)):
         if not rows:
@@ -204,8 +207,8 @@ def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
         out.append(f"- evaluator, {w} policies: {s2}/{len(done)} >= {bar[2]:.0%} both ways in scenario 2, "
                    f"{s13}/{len(done)} >= {bar[1]:.0%} / {bar[3]:.0%} both ways in scenarios 1 / 3, "
                    f"{both}/{len(done)} both ({len(launches) - len(done)} not evaluated)")
-    out += ["", f"Goal (issue 47): every final policy {goal}; evaluator {', '.join(map(str, sorted(trials))) or '–'} "
-            "trials per scenario and direction. Launch to 90 %: the in-training evaluation of the paper pairs "
+    out += ["", (f"Goal (issue 47): every final policy {goal}; " if default else "") + (f"evaluator {', '.join(map(str, sorted(trials)))} "
+            "trials per scenario and direction. " if trials else "") + "Launch to 90 %: the in-training evaluation of the paper pairs "
             "(scenario 2), seconds after the process started. In-training best: the policy the training evaluation "
             "picked and its score on the very episodes that picked it (optimistic); the evaluator's columns fly "
             "it on other episodes."]
