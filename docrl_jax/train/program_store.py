@@ -196,14 +196,25 @@ def program_config(config: Config, traced: bool = False) -> Config:
     return dataclasses.replace(config, name="run", train=train, agent=agent)
 
 
+# What of the agent the evaluation's programs read: the actor that acts (`Agent.act`), and whether its carry flows.
+EVALUATED_AGENT_FIELDS = ("algo", "actor", "actor_hidden", "frames", "memory")
+
+
+def evaluation_config(config: Config) -> Config:
+    """The config as far as it shapes the evaluation's programs (evaluate, eval_starts). They read no
+    HParams, nothing of the critics, targets or replay, and not how evaluations run: sweeps and plain runs,
+    with evaluations alongside training or not, and runs that differ only in their learner share them."""
+    from docrl_jax.config import AgentConfig, ReplayConfig
+    agent = AgentConfig(**{k: getattr(config.agent, k) for k in EVALUATED_AGENT_FIELDS})
+    return program_config(dataclasses.replace(config, agent=agent, replay=ReplayConfig(),
+                                              train=dataclasses.replace(config.train, eval_alongside=False)), True)
+
+
 def store_names(config: Config, devices: tuple, traced: bool = False) -> dict[str, str]:
     """The entry names of init, chunk and evaluate (and eval_starts, with train.eval_alongside) for
     this config and devices."""
     config = program_config(config, traced)
-    # The evaluation's programs read no HParams and not how evaluations run: sweeps and plain runs, with
-    # evaluations alongside training or not, share them.
-    evaluation = program_config(dataclasses.replace(config, train=dataclasses.replace(config.train, eval_alongside=False)),
-                                True)
+    evaluation = evaluation_config(config)
     described = {"init": (config, traced), "chunk": (config, traced), "evaluate": (evaluation, None)}
     if config.train.eval_alongside:
         described["eval_starts"] = (evaluation, None)

@@ -214,9 +214,13 @@ def test_gym_make_vec_loop_runs():
 
 
 def test_gym_single_env_passes_check_env_and_ends_episodes():
-    env = gymnasium.make(ENV_ID, **GYM_KW)
-    check_env(env.unwrapped)
+    # Registered: gymnasium.make builds our env under Gymnasium's own time limit. It keeps max_episode_steps
+    # for that limit, so the env inside has our default step limit: stepping it would compile a second program
+    # for the same code, so the checks below run on one env with the test's limit.
+    made = gymnasium.make(ENV_ID, **GYM_KW)
+    assert isinstance(made.unwrapped, HUAUVGymEnv) and made.spec.max_episode_steps == LIMIT
     env = HUAUVGymEnv(**GYM_KW)
+    check_env(env)
     obs, info = env.reset(seed=3)
     assert obs.shape == (26,) and info["step"] == 0
     for t in range(LIMIT):

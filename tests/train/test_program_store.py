@@ -96,6 +96,12 @@ def test_entry_names_follow_what_shapes_the_programs(tmp_path):
     # A sweep's traced programs are others; they share the plain run's evaluation.
     traced = program_store.store_names(easy_config(), devices, traced=True)
     assert traced["chunk"] != base["chunk"] and traced["evaluate"] == base["evaluate"]
+    # So do runs that differ only in their learner (critics, targets, replay); not those whose actor differs.
+    learner = program_store.store_names(easy_config(agent__n_step=2, agent__critic_hidden=[32, 32],
+                                                    agent__critic_layer_norm=True, replay__batch_size=32), devices)
+    assert learner["chunk"] != base["chunk"] and learner["evaluate"] == base["evaluate"]
+    for actor in (dict(agent__actor_hidden=[16]), dict(agent__algo="sac"), dict(agent__memory=False, replay__burn_in=0)):
+        assert program_store.store_names(easy_config(**actor), devices)["evaluate"] != base["evaluate"], actor
     # The programs hold a tank set's solids (constants): an edited tank file is a new entry.
     tank = tmp_path / "tank.yaml"
     tank.write_text("floor_top: -1.3\n")

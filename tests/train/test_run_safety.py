@@ -135,8 +135,8 @@ def _interrupting(monkeypatch, times: int, during_save: int = 0, chunk: int = 1)
 
 @pytest.mark.parametrize("presses", [1, 2])
 def test_ctrl_c_once_or_twice_saves_after_the_chunk(monkeypatch, presses):
-    """Once during chunk 1; twice during chunk 3, when the second press gives the time chunk 2 took
-    less what chunk 3 has run (chunk 1, 4,000 env steps from start_steps 2,000, learned on half its
+    """Once during chunk 1; twice during chunk 3, when the second press gives an estimate from the time
+    chunk 2 took (chunk 1, 4,000 env steps from start_steps 2,000, learned on half its
     iterations, chunk 2 on all; the command's test below presses during chunk 2: no estimate yet)."""
     chunk = 1 if presses == 1 else 3
     d = tmp_dir(f"ctrl_c_{presses}")
@@ -146,8 +146,10 @@ def test_ctrl_c_once_or_twice_saves_after_the_chunk(monkeypatch, presses):
     text = out.getvalue()
     assert "stopping after the running chunk" in text
     assert ("still stopping" in text) == (presses == 2)
-    if presses == 2:
-        assert re.search(r"still stopping after the running chunk \(about [1-9]\d* s more\)", text), text
+    if presses == 2:   # an estimate from chunk 2's time: "about N s more", or "any moment" where chunks take
+        # under a second (4,000 env steps on a fast CPU; the arithmetic has its own test above, on a set clock)
+        assert re.search(r"still stopping after the running chunk \((about [1-9]\d* s more|any moment: it has run "
+                         r"[^,]+, chunks take about [^)]+)\)", text), text
     assert _steps(d)[-1] == 4000 * chunk   # (checkpoint_every 8,000 adds 8,000 before chunk 3's)
     # Not wrapped at 80 columns in a log file: the resume command is on one line.
     assert f"resume with python -m docrl_jax.train --run-dir {d} --resume" in text
@@ -229,8 +231,7 @@ def test_a_launch_prints_a_short_summary_and_the_run_directory_holds_the_full_co
 def test_a_third_ctrl_c_quits_the_command_at_once_with_exit_130_and_the_checkpoints_kept(tmp_path):
     """The command, in a process of its own, loading this process's compiled programs from a program
     store (seconds, no compile): three Ctrl-Cs while its second chunk computes. The process leaves
-    at once: exit 130, no C++ abort (a helper thread was inside XLA), the first chunk's checkpoint
-    kept; the second press says that the running chunk's length is not known yet (the first chunk
+    at once: exit 130, no C++ abort (a helper thread was inside XLA), the checkpoints kept; the second press says that the running chunk's length is not known yet (the first chunk
     learned on only some of its iterations)."""
     import subprocess
     import sys
@@ -259,7 +260,7 @@ def test_a_third_ctrl_c_quits_the_command_at_once_with_exit_130_and_the_checkpoi
             lines.append(line)
             if " steps/s " in line:
                 break
-        for _ in range(3):   # a chunk takes a second or more here; each message is printed within 0.1 s
+        for _ in range(3):   # each message is printed within 0.1 s
             proc.send_signal(signal.SIGINT)
             time.sleep(0.15)
         out, err = proc.communicate(timeout=60)
@@ -269,9 +270,12 @@ def test_a_third_ctrl_c_quits_the_command_at_once_with_exit_130_and_the_checkpoi
     assert "terminate called" not in err and proc.returncode == 130, (proc.returncode, out[-2000:], err[-2000:])
     # The first chunk learned on only some iterations: the second's length is not known yet.
     assert "still stopping after the running chunk (it has run 0 s; no estimate" in out
-    assert "quit without saving; newest checkpoint: env step 4,000" in out
-    assert _steps(d) == [4000]
-    assert load_policy(d).source.endswith("checkpoint 4000")
+    # The first chunk's checkpoint; on a fast CPU the second chunk (~0.3 s) can end between the presses, and
+    # the second press then saves its own before the third quits: the message names the newest either way.
+    newest = _steps(d)[-1]
+    assert _steps(d) in ([4000], [4000, 8000]), _steps(d)
+    assert f"quit without saving; newest checkpoint: env step {newest:,}" in out
+    assert load_policy(d).source.endswith(f"checkpoint {newest}")
     assert yaml.safe_load((d / "config.yaml").read_text())["name"] == "easy"
 
 
