@@ -231,8 +231,9 @@ def test_a_launch_prints_a_short_summary_and_the_run_directory_holds_the_full_co
 def test_a_third_ctrl_c_quits_the_command_at_once_with_exit_130_and_the_checkpoints_kept(tmp_path):
     """The command, in a process of its own, loading this process's compiled programs from a program
     store (seconds, no compile): three Ctrl-Cs while its second chunk computes. The process leaves
-    at once: exit 130, no C++ abort (a helper thread was inside XLA), the checkpoints kept; the second press says that the running chunk's length is not known yet (the first chunk
-    learned on only some of its iterations)."""
+    at once: exit 130, no C++ abort (a helper thread was inside XLA), the checkpoints kept; the second
+    press says that the running chunk's length is not known yet (the first chunk learned on only some of
+    its iterations)."""
     import subprocess
     import sys
     import time
