@@ -15,8 +15,9 @@ Episode ends, as Gymnasium names them:
                `terminate_on_arrival=True` (a true terminal state: do not bootstrap);
   truncated  = our step limit `max_episode_steps` (500, the paper's, with its -10 reward) without a
                termination on that step (bootstrap from the final observation). `gym.make` keeps
-               its own `max_episode_steps` argument for Gymnasium's TimeLimit wrapper (no -10
-               reward there); our limit is `HUAUVGymEnv(max_episode_steps=N)`.
+               its own `max_episode_steps` argument for Gymnasium's TimeLimit wrapper, which
+               truncates without the -10 reward while ours still applies; ours is set by
+               `HUAUVGymEnv(max_episode_steps=N)`.
 
 Auto-reset mode: SAME_STEP (`metadata["autoreset_mode"] = AutoresetMode.SAME_STEP`), the mode our
 own training wrapper uses, chosen because it wastes no step: when env i ends on a step, the
