@@ -179,8 +179,8 @@ def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
                  " / ".join(pct(x) for x in r["train_final"]) if r["train_final"] else "–", best]
         cells += [pair(r[f"eval_{w}"], s) for w in ("final", "best") for s in SCENARIO_COLUMNS]
         lines.append("| " + " | ".join(cells) + " |")
-    default = side in ("new", "old")   # every_seed.sh's sides; recipe_end.sh's are the recipes
-    recipe = "td3_lstm" if default else side
+    every_seed = side in ("new", "old")   # every_seed.sh's sides; recipe_end.sh's are the recipes
+    recipe = "td3_lstm" if every_seed else side
     out = [f"# Every seed, every time: {len(launches)} launches of `python -m docrl_jax.train --config {recipe}`"
            + (f", side {side}" if side == "old" else "") + (f" ({gpu})" if gpu else ""), "", *lines, ""]
     for kind, rows in (("warm", [r for r in launches if r["cold"] is False]),
@@ -207,11 +207,13 @@ def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
         out.append(f"- evaluator, {w} policies: {s2}/{len(done)} >= {bar[2]:.0%} both ways in scenario 2, "
                    f"{s13}/{len(done)} >= {bar[1]:.0%} / {bar[3]:.0%} both ways in scenarios 1 / 3, "
                    f"{both}/{len(done)} both ({len(launches) - len(done)} not evaluated)")
-    out += ["", (f"Goal (issue 47): every final policy {goal}; " if default else "") + (f"evaluator {', '.join(map(str, sorted(trials)))} "
-            "trials per scenario and direction. " if trials else "") + "Launch to 90 %: the in-training evaluation of the paper pairs "
-            "(scenario 2), seconds after the process started. In-training best: the policy the training evaluation "
-            "picked and its score on the very episodes that picked it (optimistic); the evaluator's columns fly "
-            "it on other episodes."]
+    footer = f"Goal (issue 47): every final policy {goal}; " if every_seed else ""
+    if trials:
+        footer += f"evaluator {', '.join(map(str, sorted(trials)))} trials per scenario and direction. "
+    footer += ("Launch to 90 %: the in-training evaluation of the paper pairs (scenario 2), seconds after the process "
+               "started. In-training best: the policy the training evaluation picked and its score on the very episodes "
+               "that picked it (optimistic); the evaluator's columns fly it on other episodes.")
+    out += ["", footer]
     return "\n".join(out) + "\n"
 
 
