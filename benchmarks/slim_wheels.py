@@ -1,7 +1,8 @@
 """The carried wheels (.whl, from ../shared/device/get-wheels.sh) slimmed into .whl_gpu for the GPU machine,
 whose carried tree (tracked files and the wheels) must stay under 64 MiB: mujoco's wheel without
-`mujoco/experimental` and the Filament renderer (`mujoco/_render_filament*`), which neither training nor
-evaluation imports (rendering uses EGL); every other wheel copied as it is, but with --without-render
+`mujoco/experimental` and the Filament renderer (`mujoco/_render_filament*`), mujoco-mjx's wheel without its
+test data (`mujoco/mjx/test_data`, 6.5 MiB), which neither training nor evaluation imports (rendering uses
+EGL); every other wheel copied as it is, but with --without-render
 those only rendering needs (pyopengl, glfw: 3.3 MiB), for a round that draws nothing when the tree has
 grown. pip installs the slimmed wheel with --no-deps as the device README says (its RECORD still names
 the dropped files; pip does not check them).
@@ -18,7 +19,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-DROPPED = ("mujoco/experimental/", "mujoco/_render_filament")
+DROPPED = ("mujoco/experimental/", "mujoco/_render_filament", "mujoco/mjx/test_data/")
 RENDER_ONLY = ("pyopengl-", "glfw-")   # wheel names, lower-case
 
 
@@ -47,7 +48,7 @@ def main(argv=None) -> int:
         ap.exit(2, f"slim_wheels.py: error: no wheels in {src} (bash ../shared/device/get-wheels.sh makes them)\n")
     out.mkdir(exist_ok=True)
     for wheel in wheels:
-        if wheel.name.startswith("mujoco-"):
+        if wheel.name.startswith(("mujoco-", "mujoco_mjx-")):
             print(f"{wheel.name}: {slim(wheel, out / wheel.name)} files dropped")
         else:
             shutil.copy2(wheel, out / wheel.name)

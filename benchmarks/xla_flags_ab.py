@@ -1,8 +1,11 @@
-"""XLA flags A/B: the run's own compiled chunk and evaluation under several `XLA_FLAGS`, each variant
-in a fresh process (XLA reads its flags once), interleaved over rounds.
+"""XLA flags A/B: the run's own compiled chunk and evaluation under several `XLA_FLAGS` (or JAX settings),
+each variant in a fresh process (XLA reads its flags once), interleaved over rounds.
 
     python benchmarks/xla_flags_ab.py --config td3_lstm --rounds 3 \
         --variant base= --variant graphs=--xla_gpu_enable_command_buffer=+WHILE,+CONDITIONAL --out OUT
+
+A variant's words that start with `--` are XLA flags; words `JAX_NAME=VALUE` are set in the child's
+environment, where JAX reads them as its config (e.g. `JAX_THREEFRY_GPU_KERNEL_LOWERING=1`).
 
 Each process compiles the train command's programs (`docrl_jax.train.programs.compile_programs`,
 compilation cache off, or with `--cache fresh` an empty one of its own: every variant really compiles), runs init and `--warmup` chunks (past
@@ -79,7 +82,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", default="td3_lstm")
     p.add_argument("--variant", action="append", default=[], metavar="NAME=FLAGS",
-                   help="a name and the XLA_FLAGS added to the environment's (empty: none added)")
+                   help="a name and the XLA_FLAGS added to the environment's (empty: none added); "
+                        "JAX_NAME=VALUE words are JAX settings set in the child's environment")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--warmup", type=int, default=2)
     p.add_argument("--chunks", type=int, default=5)
@@ -102,7 +106,9 @@ def main() -> None:
     runs: dict[str, list[dict]] = {name: [] for name in variants}
     for _ in range(a.rounds):
         for name, flags in variants.items():
-            env = {**os.environ, "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} {flags}".strip(),
+            jax_vars = dict(w.split("=", 1) for w in flags.split() if w.startswith("JAX_"))
+            xla = " ".join(w for w in flags.split() if not w.startswith("JAX_"))
+            env = {**os.environ, **jax_vars, "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} {xla}".strip(),
                    "DOCRL_JAX_COMPILE_CACHE": "off" if a.cache == "off" else tempfile.mkdtemp(prefix="xla_ab_cache_")}
             cmd = [sys.executable, __file__, "--child", "--config", a.config, "--warmup", str(a.warmup),
                    "--chunks", str(a.chunks), "--evals", str(a.evals), "--out", a.out,
@@ -129,7 +135,7 @@ def main() -> None:
                      "eval_s": round(statistics.median(t for r in ok for t in r["eval_s"]), 4),
                      "eval": "; ".join(f"{k} {v:.2f}" for k, v in ok[0]["eval"].items()),
                      "runs": len(ok), "raw": results})
-    columns = [("variant", "variant"), ("XLA_FLAGS added", "flags"), ("compile s", "compile_s"),
+    columns = [("variant", "variant"), ("XLA_FLAGS or JAX settings added", "flags"), ("compile s", "compile_s"),
                ("chunk s (median)", "chunk_s"), ("env steps/s", "env_steps_per_s"),
                ("evaluation s, initial actor", "eval0_s"), ("evaluation s, trained actor", "eval_s"),
                ("trained actor's evaluation (first round)", "eval")]

@@ -68,8 +68,8 @@ PACKAGES = ("jax", "jaxlib", "jax-cuda12-plugin", "jax-cuda12-pjrt", "jax-cuda13
             "mujoco", "mujoco-mjx", "flax", "optax", "chex", "numpy")
 # JAX settings that change what a traced function lowers or compiles to.
 JAX_FLAGS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_default_prng_impl", "jax_threefry_partitionable",
-             "jax_numpy_dtype_promotion", "jax_use_shardy_partitioner", "jax_use_simplified_jaxpr_constants",
-             "jax_embedded_constants_max_bytes", "jax_disable_most_optimizations")
+             "jax_threefry_gpu_kernel_lowering", "jax_numpy_dtype_promotion", "jax_use_shardy_partitioner",
+             "jax_use_simplified_jaxpr_constants", "jax_embedded_constants_max_bytes", "jax_disable_most_optimizations")
 
 
 # ------------------------------------------------------------------ the persistent compilation cache

@@ -4,7 +4,10 @@ a miss; entry names follow what shapes the programs and nothing else."""
 
 from __future__ import annotations
 
+import functools
 import os
+import threading
+from concurrent.futures import Future
 
 import jax
 import jax.numpy as jnp
@@ -60,6 +63,70 @@ def test_stored_programs_load_without_tracing_and_compute_the_same(tmp_path, mon
         state, m = progs.chunk(state)
         results.append((jax.device_get(state), jax.device_get(m), jax.device_get(ev)))
     assert _leaves_equal(results[0], results[1]) and _leaves_equal(results[0], results[2])
+
+
+def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_stores_only_the_full_one(
+        tmp_path, monkeypatch):
+    # What a cold start on a GPU does, on this CPU (where both builds are one program): the full chunk's
+    # compile is held until the quick one has run a chunk, then released.
+    config, devices = easy_config(), (jax.devices()[0],)
+    plain, _ = programs.compile_programs(config, devices)   # memoised: the first test compiled it
+    names = program_store.store_names(config, devices)
+    monkeypatch.setattr(programs, "_COMPILED", {})
+    monkeypatch.setattr(program_store, "folder", lambda: tmp_path)
+    release, compile_full = threading.Event(), programs._compile_and_store
+    monkeypatch.setattr(programs, "_compile_and_store", lambda *a: release.wait(60) and compile_full(*a))
+    monkeypatch.setattr(programs, "_compile", functools.partial(programs._compile, tiered=True))
+    before = jax.config.jax_enable_compilation_cache   # a persistent-cache hit could not be stored on a CPU
+    jax.config.update("jax_enable_compilation_cache", False)
+    try:
+        tiered, _ = programs.compile_programs(config, devices)
+        assert isinstance(tiered.chunk, programs.Tiered) and not jax.config.jax_threefry_gpu_kernel_lowering
+        keys, total = jnp.stack([jax.random.PRNGKey(3)]), jnp.asarray(4000, jnp.int32)
+        runs = []
+        for chunk in (plain.chunk, tiered.chunk):
+            state = plain.init(keys, total)
+            state, first = chunk(state)
+            if chunk is tiered.chunk:   # the quick build ran it; the full one is not stored yet
+                assert chunk.quick_calls == 1 and not (tmp_path / f"{names['chunk']}.bin").exists()
+                release.set()
+                chunk.full.result(timeout=120)
+            state, second = chunk(state)
+            runs.append((state, first, second))
+    finally:
+        release.set()
+        jax.config.update("jax_enable_compilation_cache", before)
+    assert tiered.chunk.quick_calls == 1 and tiered.chunk.full is None   # the full build ran the second
+    assert (tmp_path / f"{names['chunk']}.bin").exists()
+    assert _leaves_equal(runs[0], runs[1])
+
+
+def test_tiered_switches_to_the_full_build_once_ready_and_raises_its_failure():
+    quick_calls, full_calls = [], []
+    full = Future()
+    chunk = programs.Tiered(lambda s: quick_calls.append(s) or s, full)
+    assert chunk(1) == 1 and chunk(2) == 2 and chunk.quick_calls == 2
+    full.set_result(lambda s: full_calls.append(s) or -s)
+    assert chunk(3) == -3 and chunk(4) == -4
+    assert quick_calls == [1, 2] and full_calls == [3, 4] and chunk.quick_calls == 2
+
+    failed = Future()
+    failed.set_exception(RuntimeError("XLA failed"))
+    with pytest.raises(RuntimeError, match="XLA failed"):
+        programs.Tiered(lambda s: s, failed)(0)
+
+
+def test_kernel_random_is_restored_and_leaves_a_set_value_alone():
+    for user_value in (False, True):
+        jax.config.update("jax_threefry_gpu_kernel_lowering", user_value)
+        try:
+            with programs.kernel_random(True):
+                assert jax.config.jax_threefry_gpu_kernel_lowering
+            with programs.kernel_random(False):
+                assert jax.config.jax_threefry_gpu_kernel_lowering == user_value
+            assert jax.config.jax_threefry_gpu_kernel_lowering == user_value
+        finally:
+            jax.config.update("jax_threefry_gpu_kernel_lowering", False)
 
 
 def test_damaged_entries_are_misses_and_old_ones_are_pruned(tmp_path, monkeypatch):
