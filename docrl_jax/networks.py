@@ -36,9 +36,11 @@ class _Head(nn.Module):
 
 
 class LSTMActor(nn.Module):
-    """LSTM(26 -> units) -> Linear(units -> 3): tanh output (TD3) or Gaussian head (SAC)."""
+    """LSTM(26 -> units) -> Linear(units -> 3): tanh output (TD3) or Gaussian head (SAC). `sequence_unroll`
+    (agent.sequence_unroll) is how `unroll` runs it over a replay sequence; it shapes no parameter."""
     units: int
     stochastic: bool = False
+    sequence_unroll: int = 0
 
     @nn.compact
     def __call__(self, carry, obs):
@@ -60,6 +62,7 @@ class MLPActor(nn.Module):
     stochastic: bool = False
     frames: int = 1
     obs_size: int = 0
+    sequence_unroll: int = 0   # as LSTMActor's
 
     @nn.compact
     def __call__(self, carry, obs):
@@ -129,8 +132,9 @@ def make_actor(agent_config, obs_size: int, stochastic: bool) -> nn.Module:
     (reading agent.frames stacked observations); a Gaussian head when `stochastic` (SAC)."""
     a = agent_config
     if a.actor == "lstm":
-        return LSTMActor(units=a.actor_hidden[0], stochastic=stochastic)
-    return MLPActor(hidden=tuple(a.actor_hidden), stochastic=stochastic, frames=a.frames, obs_size=obs_size)
+        return LSTMActor(units=a.actor_hidden[0], stochastic=stochastic, sequence_unroll=a.sequence_unroll)
+    return MLPActor(hidden=tuple(a.actor_hidden), stochastic=stochastic, frames=a.frames, obs_size=obs_size,
+                    sequence_unroll=a.sequence_unroll)
 
 
 def carry_features(carry) -> jax.Array:
@@ -157,7 +161,8 @@ def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = T
     TD targets need.
 
     The loop is fully unrolled for the short replay sequences (T <= 32): XLA then fuses across time
-    steps instead of paying a while-loop iteration (and its kernel launches) per step.
+    steps instead of paying a while-loop iteration (and its kernel launches) per step. An actor with
+    `sequence_unroll` k > 0 runs k steps per iteration instead: the same results, a smaller program.
     """
     zero = jax.tree.map(jnp.zeros_like, carry)
 
@@ -171,8 +176,9 @@ def unroll(actor: nn.Module, params, carry, obs_seq, reset_seq, memory: bool = T
         return new_c, (c, out, new_c if memory else zero)
 
     length = obs_seq.shape[0]
+    per_iteration = actor.sequence_unroll or (length if length <= 32 else 1)
     final, (carries_in, outs, after) = jax.lax.scan(step, carry, (obs_seq, reset_seq),
-                                                    unroll=length if 0 < length <= 32 else 1)
+                                                    unroll=max(1, min(per_iteration, length)))
     return carries_in, outs, final, after
 
 

@@ -217,3 +217,27 @@ def test_expand_flag_broadcasts_a_row_flag_over_trailing_axes():
     assert expand_flag(flag, jnp.zeros((2,))).shape == (2,)
     picked = jnp.where(expand_flag(flag, jnp.ones((2, 3))), 0.0, jnp.ones((2, 3)))
     np.testing.assert_array_equal(picked, [[0, 0, 0], [1, 1, 1]])
+
+
+@pytest.mark.parametrize("algo", ["td3", "sac"])
+def test_sequence_unroll_changes_the_loop_not_what_an_update_computes(algo):
+    # The actor's replay-sequence loop rolled (1 step per iteration, or 2) or unrolled whole (0): one
+    # update, actor included, from the same state and batch gives the same networks up to float rounding.
+    seq_len = 5
+    batch = _batch(jax.random.PRNGKey(21), seq_len)
+    batch["carry"] = jax.tree.map(lambda z: jnp.full((B, seq_len) + z.shape[1:], 0.1),
+                                  make_agent(_config(algo, actor="lstm")).actor.init_carry((B,)))
+    updated = []
+    for k in (0, 1, 2):
+        agent = make_agent(_config(algo, actor="lstm", policy_freq=1, sequence_unroll=k))
+        assert agent.actor.sequence_unroll == k
+        state = _perturbed(agent.init(jax.random.PRNGKey(20)))
+        new, metrics = jax.jit(agent.update)(state, batch, jax.random.PRNGKey(22), jnp.float32(0.3))
+        assert float(metrics["actor_updated"]) == 1.0
+        updated.append(new)
+    moved = [not np.array_equal(x, y) for x, y in zip(jax.tree.leaves(_np(state.actor)),
+                                                      jax.tree.leaves(_np(updated[0].actor)))]
+    assert any(moved)   # the update trained the actor: the comparison below is not of untouched networks
+    for other in updated[1:]:
+        jax.tree.map(lambda x, y: np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-5, atol=1e-6),
+                     updated[0], other)

@@ -28,7 +28,8 @@ def validate(c: Config) -> Config:
                            ("train.checkpoint_every", t.checkpoint_every, 1), ("train.start_steps", t.start_steps, 0),
                            ("train.keep_checkpoints", t.keep_checkpoints, 1), ("agent.policy_freq", a.policy_freq, 0),
                            ("train.video_every", t.video_every, 0),
-                           ("replay.burn_in", r.burn_in, 0), ("agent.n_step", a.n_step, 1)]:
+                           ("replay.burn_in", r.burn_in, 0), ("agent.n_step", a.n_step, 1),
+                           ("agent.sequence_unroll", a.sequence_unroll, 0)]:
         if value < lo:
             bad(key, value, f"must be >= {lo}")
     if t.devices < 0:

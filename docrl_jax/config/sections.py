@@ -92,6 +92,11 @@ class AgentConfig:
         "targets and losses stay float32. bfloat16 halves the memory traffic of the "
         "critics' layers and LayerNorms, which is what an update spends its time on "
         "(docs/BENCHMARKS.md, 'What an update costs').", ("float32", "bfloat16"))
+    sequence_unroll: int = documented(0, "Replay-sequence steps the actor runs per loop iteration in the gradient "
+                                         "updates: 0 = every step unrolled (the fastest learner); k > 0 = a loop of k "
+                                         "steps at a time (less for XLA to compile, a slower learner: with 1 the "
+                                         "learner made ~25 % fewer env steps/s on a GPU). The same computation either "
+                                         "way. A cold start's quick build of the chunk uses 1 (docs/TRAINER.md).")
     n_step: int = documented(1, "TD target over n rewards inside each sampled sequence (1 = the paper's one-step "
                                 "target); never crosses an episode end or the sequence end (common.nstep_targets).")
     lr_end_scale: float = documented(1.0,

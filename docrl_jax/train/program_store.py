@@ -352,13 +352,14 @@ def _listen() -> None:
     jax.monitoring.register_event_listener(_on_event)
 
 
-def compile_lowered(lowered: jax.stages.Lowered, platform: str) -> tuple[jax.stages.Compiled, bool]:
-    """`lowered.compile()`, and whether the executable may be stored. On the CPU only one the
-    compiler built in this process may: XLA's CPU executable, once loaded from JAX's persistent
-    cache, serialises without some of its functions and would fail when loaded again."""
+def compile_lowered(lowered: jax.stages.Lowered, platform: str, options: dict | None = None
+                    ) -> tuple[jax.stages.Compiled, bool]:
+    """`lowered.compile()` (with XLA `options` when given), and whether the executable may be stored. On
+    the CPU only one the compiler built in this process may: XLA's CPU executable, once loaded from JAX's
+    persistent cache, serialises without some of its functions and would fail when loaded again."""
     _listen()
     _thread.cache_hit = False
-    compiled = lowered.compile()
+    compiled = lowered.compile(compiler_options=options) if options else lowered.compile()
     return compiled, not (platform == "cpu" and _thread.cache_hit)
 
 

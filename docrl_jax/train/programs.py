@@ -10,10 +10,11 @@ the delayed actor update and the pre-learning phase would cost a full update on 
 several devices (train.devices, docrl_jax.sharding) shard_map gives each device its block of seeds;
 every input and output keeps the seed axis, sharded over the 'seed' mesh axis.
 
-A cold start on a GPU (one process) compiles the chunk twice (`Tiered`): a build whose random bits are kernel calls
-(`kernel_random`: the same bits, ~20 % less to compile, 7 % slower to run) that training starts with, and
-the full build, compiled beside it, that takes over from the next chunk once it is ready and is the one
-stored. init, evaluate and eval_starts, whose speed hardly counts, are only built the quick way.
+A cold start on a GPU (one process) compiles the chunk twice (`Tiered`): a quick build that training starts
+with (the same computation, less to compile and slower to run: random draws as kernel calls, `kernel_random`;
+the actor's sequence loop rolled, `quick_config`; cuBLAS matrix products, `QUICK_CHUNK_OPTIONS`), and the
+full build, compiled beside it, that takes over from the next chunk once it is ready and is the one stored.
+init, evaluate and eval_starts, whose speed hardly counts, get kernel-call random draws only.
 
 traced=True (sweeps): init(keys, total, hp) and chunk(state, hp) also take the agent's
 hyperparameters (`algorithms.HParams`, one float32 per seed row), so rows that differ only in them
@@ -25,6 +26,7 @@ run of the same shapes share it.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, Callable, NamedTuple
@@ -105,7 +107,6 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key, names: dict
     from the memo), and the names of those the store may keep (program_store.compile_lowered). `tiered`
     (default: on a GPU, in a single-process run) starts the chunk's `Tiered` builds; the full one stores
     itself once compiled."""
-    init, chunk, evaluate, eval_starts = _jitted(config, devices, traced)
     platform = devices[0].platform
     # Not across processes: every process of a multi-process run must run the same build of a chunk.
     tiered = platform != "cpu" and jax.process_count() == 1 if tiered is None else tiered
@@ -113,26 +114,29 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key, names: dict
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)
     hp = (hparams_shape(n, config),) if traced else ()
-    with kernel_random(tiered):
-        state_shape = jax.eval_shape(init, keys, total, *hp)
+    pool = ThreadPoolExecutor(4 + tiered)
     # Tracing and lowering are Python, one program at a time whatever the threads; XLA compiles without
-    # Python's lock. So each program is lowered in turn, the chunk (the longest compile) first, and
-    # compiles in its thread while the next ones are lowered; the full chunk, needed last, is lowered last.
-    lowerings = {"chunk": lambda: chunk.lower(state_shape, *hp), "init": lambda: init.lower(keys, total, *hp)}
+    # Python's lock. So each program is lowered in turn, the chunk training starts with (the longest
+    # compile) first, and compiles in its thread while the next ones are lowered; the full chunk of a
+    # tiered start, needed last, is lowered last.
+    first = _jitted(quick_config(config) if tiered else config, devices, traced)
+    with kernel_random(tiered):
+        state_shape = jax.eval_shape(first[0], keys, total, *hp)
+        done = {"chunk": pool.submit(program_store.compile_lowered, first[1].lower(state_shape, *hp), platform,
+                                     QUICK_CHUNK_OPTIONS if tiered else None)}
+    init, chunk, evaluate, eval_starts = _jitted(config, devices, traced) if tiered else first
+    lowerings = {"init": lambda: init.lower(keys, total, *hp)}
     if eval_key not in _COMPILED:
         lowerings["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys)
     if eval_starts is not None:
         lowerings["eval_starts"] = lambda: eval_starts.lower(keys)
-    pool = ThreadPoolExecutor(len(lowerings) + tiered)
-    done = {}
     for name, lower in lowerings.items():
         with kernel_random(tiered):
             lowered = lower()
         done[name] = pool.submit(program_store.compile_lowered, lowered, platform)
     full = None
     if tiered:
-        lowered = chunk.lower(state_shape, *hp)
-        full = pool.submit(_compile_and_store, lowered, platform, store, names["chunk"])
+        full = pool.submit(_compile_and_store, chunk.lower(state_shape, *hp), platform, store, names["chunk"])
     pool.shutdown(wait=False)   # the full chunk compiles on while training starts
     compiled = {name: f.result() for name, f in done.items()}
     storable = [name for name, (_, ok) in compiled.items() if ok and not (tiered and name == "chunk")]
@@ -140,6 +144,18 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key, names: dict
     if tiered:
         compiled["chunk"] = Tiered(compiled["chunk"], full)
     return {"evaluate": _COMPILED.get(eval_key), **compiled}, storable
+
+
+# The quick build of a tiered start's chunk: besides `kernel_random`, cuBLAS instead of Triton for its
+# matrix products and the replay sequences' loop rolled (`quick_config`), each less for XLA to compile
+# and slower to run, for the chunks until the full build is ready.
+QUICK_CHUNK_OPTIONS = {"xla_gpu_enable_triton_gemm": False}
+
+
+def quick_config(config: Config) -> Config:
+    """The config of a tiered start's quick chunk: the actor runs the replay sequences one step per loop
+    iteration (agent.sequence_unroll 1). The runner state and the computation are the run's own."""
+    return dataclasses.replace(config, agent=dataclasses.replace(config.agent, sequence_unroll=1))
 
 
 @contextlib.contextmanager

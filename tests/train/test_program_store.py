@@ -67,8 +67,8 @@ def test_stored_programs_load_without_tracing_and_compute_the_same(tmp_path, mon
 
 def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_stores_only_the_full_one(
         tmp_path, monkeypatch):
-    # What a cold start on a GPU does, on this CPU (where both builds are one program): the full chunk's
-    # compile is held until the quick one has run a chunk, then released.
+    # What a cold start on a GPU does, on this CPU: the full chunk's compile is held until the quick build
+    # (the actor's sequence loop rolled, `programs.quick_config`) has run a chunk, then released.
     config, devices = easy_config(), (jax.devices()[0],)
     plain, _ = programs.compile_programs(config, devices)   # memoised: the first test compiled it
     names = program_store.store_names(config, devices)
@@ -83,22 +83,18 @@ def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_sto
         tiered, _ = programs.compile_programs(config, devices)
         assert isinstance(tiered.chunk, programs.Tiered) and not jax.config.jax_threefry_gpu_kernel_lowering
         keys, total = jnp.stack([jax.random.PRNGKey(3)]), jnp.asarray(4000, jnp.int32)
-        runs = []
-        for chunk in (plain.chunk, tiered.chunk):
-            state = plain.init(keys, total)
-            state, first = chunk(state)
-            if chunk is tiered.chunk:   # the quick build ran it; the full one is not stored yet
-                assert chunk.quick_calls == 1 and not (tmp_path / f"{names['chunk']}.bin").exists()
-                release.set()
-                chunk.full.result(timeout=120)
-            state, second = chunk(state)
-            runs.append((state, first, second))
+        state, _ = tiered.chunk(plain.init(keys, total))   # the quick build ran it; the full one is not stored yet
+        assert tiered.chunk.quick_calls == 1 and not (tmp_path / f"{names['chunk']}.bin").exists()
+        release.set()
+        tiered.chunk.full.result(timeout=120)
+        expected = plain.chunk(jax.tree.map(jnp.copy, state))
+        taken_over = tiered.chunk(state)
     finally:
         release.set()
         jax.config.update("jax_enable_compilation_cache", before)
-    assert tiered.chunk.quick_calls == 1 and tiered.chunk.full is None   # the full build ran the second
+    assert tiered.chunk.quick_calls == 1 and tiered.chunk.full is None
     assert (tmp_path / f"{names['chunk']}.bin").exists()
-    assert _leaves_equal(runs[0], runs[1])
+    assert _leaves_equal(expected, taken_over)   # the full build is the run's own chunk
 
 
 def test_tiered_switches_to_the_full_build_once_ready_and_raises_its_failure():
