@@ -191,6 +191,11 @@ class Tiered:
     def __init__(self, quick: Callable, full: Future):
         self.current, self.full, self.quick_calls = quick, full, 0
 
+    @property
+    def compiling(self) -> bool:
+        """The full build is still compiling (a process that ends now waits for it, to store it)."""
+        return self.full is not None and not self.full.done()
+
     def __call__(self, *args):
         if self.full is not None and self.full.done():
             self.current, self.full = self.full.result(), None   # a failed compile raises here

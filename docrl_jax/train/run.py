@@ -31,7 +31,7 @@ from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
                                   make_console, run_chunks, schedule)
-from docrl_jax.train.programs import compile_programs
+from docrl_jax.train.programs import Tiered, compile_programs
 
 __all__ = ["check_resume_changes", "check_run_dir", "run"]
 
@@ -320,4 +320,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     elif status == EXIT_INTERRUPTED:
         console.print(f"interrupted: checkpoint saved at env step {env_steps:,}; resume with "
                       f"python -m docrl_jax.train --run-dir {run_dir} --resume")
+    if isinstance(programs.chunk, Tiered) and programs.chunk.compiling:   # the process waits for it on exit
+        console.print("the full training program is still compiling; the process ends once it is stored "
+                      "for the next launch (seconds)")
     return status

@@ -101,8 +101,9 @@ def test_tiered_switches_to_the_full_build_once_ready_and_raises_its_failure():
     quick_calls, full_calls = [], []
     full = Future()
     chunk = programs.Tiered(lambda s: quick_calls.append(s) or s, full)
-    assert chunk(1) == 1 and chunk(2) == 2 and chunk.quick_calls == 2
+    assert chunk(1) == 1 and chunk(2) == 2 and chunk.quick_calls == 2 and chunk.compiling
     full.set_result(lambda s: full_calls.append(s) or -s)
+    assert not chunk.compiling
     assert chunk(3) == -3 and chunk(4) == -4
     assert quick_calls == [1, 2] and full_calls == [3, 4] and chunk.quick_calls == 2
 
