@@ -183,10 +183,10 @@ def _compile_and_store(lowered, platform: str, store, name: str):
 
 
 class Tiered:
-    """The chunk of a cold start on a GPU: the quick build (lowered under `kernel_random`) runs until `full`,
-    a future of the full build compiling beside it, is ready; every call after that runs the full build.
-    Both take and return the same runner state (the same random bits, the same updates), so a run may
-    switch between any two chunks. `quick_calls` counts the chunks the quick build ran."""
+    """The chunk of a cold start on a GPU: the quick build (`_compile`) runs until `full`, a future of the
+    full build compiling beside it, is ready; every call after that runs the full build. Both take and
+    return the same runner state and compute the same (the same random bits; float rounding aside), so a
+    run may switch between any two chunks. `quick_calls` counts the chunks the quick build ran."""
 
     def __init__(self, quick: Callable, full: Future):
         self.current, self.full, self.quick_calls = quick, full, 0

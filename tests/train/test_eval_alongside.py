@@ -41,9 +41,9 @@ def setup():
     config = load_config("td3_lstm", SETS)
     handed = []   # what programs._compile handed to XLA's compile, in order
 
-    def spy(lowered, platform):
+    def spy(lowered, platform, options=None):
         handed.append(lowered)
-        return compile_lowered(lowered, platform)
+        return compile_lowered(lowered, platform, options)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(program_store, "compile_lowered", spy)
         programs, _ = compile_programs(config)
