@@ -40,7 +40,7 @@ def child(config_name: str, overrides: list, cache: str, dump: str) -> None:
     enable_compile_cache(cache)
     config = load_config(config_name, overrides)
     t1 = time.time()
-    programs, seconds = compile_programs(config)
+    programs, seconds = compile_programs(config, tiered=False)   # the full chunk, as a load brings back
     keys = jax.numpy.stack([jax.random.PRNGKey(0)])
     state = programs.init(keys, jax.numpy.asarray(10 * config.train.log_every, jax.numpy.int32))
     ev = programs.evaluate(state.agent.actor_average, keys)

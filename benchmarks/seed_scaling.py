@@ -56,7 +56,7 @@ def measure(name: str, num_envs: int, seeds_per_device: int, devices: int, iters
     trainer = make_trainer(config)
     placement = sharding.seed_placement(config.train)
     t0 = time.perf_counter()
-    programs, _ = compile_programs(config, placement.devices)  # init, chunk and evaluate, in parallel
+    programs, _ = compile_programs(config, placement.devices, tiered=False)  # init, chunk and evaluate, in parallel
     compile_s = time.perf_counter() - t0
     keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in range(num_seeds)]))
     state = programs.init(keys, placement.put_replicated(np.asarray(trainer.total_env_steps, np.int32)))

@@ -43,7 +43,7 @@ def child(config_name: str, sets: list[str], warmup: int, chunks: int, evals: in
     enable_compile_cache(os.environ["DOCRL_JAX_COMPILE_CACHE"])   # 'off', or a fresh folder (--cache fresh)
     config = load_config(config_name, sets)
     t0 = time.time()
-    programs, _ = compile_programs(config)
+    programs, _ = compile_programs(config, tiered=False)   # every program compiled whole, the full chunk timed
     compile_s = time.time() - t0
     n = config.train.num_seeds
     keys = jax.random.split(jax.random.PRNGKey(config.train.seed), n)

@@ -63,12 +63,15 @@ def hparams_shape(num_rows: int, config: Config):
 _COMPILED: dict = {}
 
 
-def compile_programs(config: Config, devices: tuple | None = None, traced: bool = False) -> tuple[Programs, float]:
+def compile_programs(config: Config, devices: tuple | None = None, traced: bool = False,
+                     tiered: bool | None = None) -> tuple[Programs, float]:
     """The run's programs for `devices` (the tuple from `sharding.seed_devices`; None resolves
     train.devices here, for callers without a run's placement). Memoised in the process; else loaded
     from the program store when an earlier launch built them (docrl_jax.train.program_store: no env
     build, no tracing); else compiled ahead of time, all at once in threads (XLA compiles them in
-    parallel), and stored (in a background thread). Returns them and the seconds this call spent (0 when memoised)."""
+    parallel), and stored (in a background thread). Returns them and the seconds this call spent (0 when memoised).
+    `tiered`: None = a `Tiered` chunk when compiling on a GPU in one process (training starts sooner);
+    False = the full chunk alone, compiled before this returns (what a benchmark that times chunks needs)."""
     devices = sharding.seed_devices(config.train)[0] if devices is None else devices
     config = program_config(config, traced)
     # The store's entry names describe the programs, so they key the memo too: the evaluation alone
@@ -82,7 +85,8 @@ def compile_programs(config: Config, devices: tuple | None = None, traced: bool 
     compiled = _load(store, names, devices) if store is not None else None
     origin = "loaded"
     if compiled is None:
-        compiled, storable, origin = *_compile(config, devices, traced, names["evaluate"], names, store), "compiled"
+        compiled, storable = _compile(config, devices, traced, names["evaluate"], names, store, tiered)
+        origin = "compiled"
         if store is not None and storable:  # written beside the run's start, not before it
             program_store.save_in_background(store, {names[what]: compiled[what] for what in storable})
     _COMPILED[names["evaluate"]] = compiled["evaluate"]

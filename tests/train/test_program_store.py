@@ -4,7 +4,6 @@ a miss; entry names follow what shapes the programs and nothing else."""
 
 from __future__ import annotations
 
-import functools
 import os
 import threading
 from concurrent.futures import Future
@@ -76,11 +75,10 @@ def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_sto
     monkeypatch.setattr(program_store, "folder", lambda: tmp_path)
     release, compile_full = threading.Event(), programs._compile_and_store
     monkeypatch.setattr(programs, "_compile_and_store", lambda *a: release.wait(60) and compile_full(*a))
-    monkeypatch.setattr(programs, "_compile", functools.partial(programs._compile, tiered=True))
     before = jax.config.jax_enable_compilation_cache   # a persistent-cache hit could not be stored on a CPU
     jax.config.update("jax_enable_compilation_cache", False)
     try:
-        tiered, _ = programs.compile_programs(config, devices)
+        tiered, _ = programs.compile_programs(config, devices, tiered=True)
         assert isinstance(tiered.chunk, programs.Tiered) and not jax.config.jax_threefry_gpu_kernel_lowering
         keys, total = jnp.stack([jax.random.PRNGKey(3)]), jnp.asarray(4000, jnp.int32)
         state, _ = tiered.chunk(plain.init(keys, total))   # the quick build ran it; the full one is not stored yet
