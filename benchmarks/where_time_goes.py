@@ -9,7 +9,9 @@ the other: imports, config, devices, the trainer's pure functions (MJCF parse, M
 first forward), the runner state's shapes, then for each program (init, chunk, evaluate) tracing,
 lowering and compiling (a cache hit still traces and lowers: the cache key is the lowered program),
 then running init, the first evaluation and the first two chunks. The train command compiles the
-three programs in threads; here they run serially so each phase has its own figure.
+three programs in threads; here they run serially so each phase has its own figure. The chunk here is
+the full build alone: a cold train command on a GPU first trains on a quick build of it
+(docrl_jax/train/programs.py, `Tiered`), which this script does not time.
 
 Iteration: one process builds a real runner state (init + one chunk, so the buffer holds data and
 learning has started), then times the pieces of one training iteration on it, each repeated `--iters`
