@@ -116,5 +116,6 @@ def main() -> None:
                                 ("compile (s), median", "compile_s"), ("each round (s)", "each_s"),
                                 ("saves against base (s)", "saves_s")])
 
+
 if __name__ == "__main__":
     main()

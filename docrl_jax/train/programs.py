@@ -85,7 +85,7 @@ def compile_programs(config: Config, devices: tuple | None = None, traced: bool 
     compiled = _load(store, names, devices) if store is not None else None
     origin = "loaded"
     if compiled is None:
-        compiled, storable = _compile(config, devices, traced, names["evaluate"], names, store, tiered)
+        compiled, storable = _compile(config, devices, traced, names, store, tiered)
         origin = "compiled"
         if store is not None and storable:  # written beside the run's start, not before it
             program_store.save_in_background(store, {names[what]: compiled[what] for what in storable})
@@ -105,7 +105,7 @@ def _load(store, names: dict, devices) -> dict | None:
     return loaded if all(p is not None for p in loaded.values()) else None
 
 
-def _compile(config: Config, devices: tuple, traced: bool, eval_key, names: dict, store,
+def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
              tiered: bool | None = None) -> tuple[dict, list]:
     """init, chunk, evaluate (and eval_starts) lowered in turn and compiled in threads (evaluate reused
     from the memo), and the names of those the store may keep (program_store.compile_lowered). `tiered`
@@ -123,14 +123,15 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key, names: dict
     # Python's lock. So each program is lowered in turn, the chunk training starts with (the longest
     # compile) first, and compiles in its thread while the next ones are lowered; the full chunk of a
     # tiered start, needed last, is lowered last.
-    first = _jitted(quick_config(config) if tiered else config, devices, traced)
+    # The quick config differs in the actor's sequence loop alone, which only the chunk's updates run: its
+    # init, evaluate and eval_starts are the run's own (init already traced for the state's shapes).
+    init, chunk, evaluate, eval_starts = _jitted(quick_config(config) if tiered else config, devices, traced)
     with kernel_random(tiered):
-        state_shape = jax.eval_shape(first[0], keys, total, *hp)
-        done = {"chunk": pool.submit(program_store.compile_lowered, first[1].lower(state_shape, *hp), platform,
+        state_shape = jax.eval_shape(init, keys, total, *hp)
+        done = {"chunk": pool.submit(program_store.compile_lowered, chunk.lower(state_shape, *hp), platform,
                                      QUICK_CHUNK_OPTIONS if tiered else None)}
-    init, chunk, evaluate, eval_starts = _jitted(config, devices, traced) if tiered else first
     lowerings = {"init": lambda: init.lower(keys, total, *hp)}
-    if eval_key not in _COMPILED:
+    if names["evaluate"] not in _COMPILED:
         lowerings["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys)
     if eval_starts is not None:
         lowerings["eval_starts"] = lambda: eval_starts.lower(keys)
@@ -140,14 +141,15 @@ def _compile(config: Config, devices: tuple, traced: bool, eval_key, names: dict
         done[name] = pool.submit(program_store.compile_lowered, lowered, platform)
     full = None
     if tiered:
-        full = pool.submit(_compile_and_store, chunk.lower(state_shape, *hp), platform, store, names["chunk"])
+        full_chunk = _jitted(config, devices, traced)[1]
+        full = pool.submit(_compile_and_store, full_chunk.lower(state_shape, *hp), platform, store, names["chunk"])
     pool.shutdown(wait=False)   # the full chunk compiles on while training starts
     compiled = {name: f.result() for name, f in done.items()}
     storable = [name for name, (_, ok) in compiled.items() if ok and not (tiered and name == "chunk")]
     compiled = {name: c for name, (c, _) in compiled.items()}
     if tiered:
         compiled["chunk"] = Tiered(compiled["chunk"], full)
-    return {"evaluate": _COMPILED.get(eval_key), **compiled}, storable
+    return {"evaluate": _COMPILED.get(names["evaluate"]), **compiled}, storable
 
 
 # The quick build of a tiered start's chunk: besides `kernel_random`, cuBLAS instead of Triton for its
