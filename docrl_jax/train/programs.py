@@ -28,7 +28,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from typing import Any, Callable, NamedTuple
 
 import jax
@@ -109,8 +109,9 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
              tiered: bool | None = None) -> tuple[dict, list]:
     """init, chunk, evaluate (and eval_starts) lowered in turn and compiled in threads (evaluate reused
     from the memo), and the names of those the store may keep (program_store.compile_lowered). `tiered`
-    (default: on a GPU, in a single-process run) starts the chunk's `Tiered` builds; the full one stores
-    itself once compiled."""
+    (default: on a GPU, in a single-process run) returns once the programs a run starts with are compiled:
+    the chunk as a `Tiered` of its builds, still compiling, and with evaluation lanes the evaluation program
+    too, whose compile waits until the quick chunk's is done; those store themselves once compiled."""
     platform = devices[0].platform
     # Not across processes: every process of a multi-process run must run the same build of a chunk.
     tiered = platform != "cpu" and jax.process_count() == 1 if tiered is None else tiered
@@ -128,8 +129,13 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
     init, chunk, evaluate, eval_starts = _jitted(quick_config(config) if tiered else config, devices, traced)
     with kernel_random(tiered):
         state_shape = jax.eval_shape(init, keys, total, *hp)
-        done = {"chunk": pool.submit(program_store.compile_lowered, chunk.lower(state_shape, *hp), platform,
-                                     QUICK_CHUNK_OPTIONS if tiered else None)}
+        chunk_lowered = chunk.lower(state_shape, *hp)
+    done, later = {}, {}   # compiled before this returns; compiling on beside the run (tiered)
+    if tiered:   # the quick build is never stored: the full one is
+        first = pool.submit(lambda lowered: program_store.compile_lowered(lowered, platform, QUICK_CHUNK_OPTIONS)[0],
+                            chunk_lowered)
+    else:
+        done["chunk"] = pool.submit(program_store.compile_lowered, chunk_lowered, platform)
     lowerings = {"init": lambda: init.lower(keys, total, *hp)}
     if names["evaluate"] not in _COMPILED:
         lowerings["evaluate"] = lambda: evaluate.lower(state_shape.agent.actor_average, keys)
@@ -138,17 +144,23 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
     for name, lower in lowerings.items():
         with kernel_random(tiered):
             lowered = lower()
-        done[name] = pool.submit(program_store.compile_lowered, lowered, platform)
-    full = None
+        if tiered and name == "evaluate" and eval_starts is not None:
+            # With evaluation lanes the program evaluates only before a checkpoint and at the end: it
+            # compiles after the quick chunk, leaving it the machine's cores.
+            later[name] = pool.submit(_compile_and_store, lowered, platform, store, names[name], after=first)
+        else:
+            done[name] = pool.submit(program_store.compile_lowered, lowered, platform)
     if tiered:
         full_chunk = _jitted(config, devices, traced)[1]
         full = pool.submit(_compile_and_store, full_chunk.lower(state_shape, *hp), platform, store, names["chunk"])
-    pool.shutdown(wait=False)   # the full chunk compiles on while training starts
+    pool.shutdown(wait=False)   # the chunk (and a later evaluation) compile on while training starts
     compiled = {name: f.result() for name, f in done.items()}
-    storable = [name for name, (_, ok) in compiled.items() if ok and not (tiered and name == "chunk")]
+    storable = [name for name, (_, ok) in compiled.items() if ok]
     compiled = {name: c for name, (c, _) in compiled.items()}
     if tiered:
-        compiled["chunk"] = Tiered(compiled["chunk"], full)
+        compiled["chunk"] = Tiered(first, full)
+        if "evaluate" in later:
+            compiled["evaluate"] = Tiered(later["evaluate"])
     return {"evaluate": _COMPILED.get(names["evaluate"]), **compiled}, storable
 
 
@@ -179,9 +191,12 @@ def kernel_random(on: bool):
         jax.config.update("jax_threefry_gpu_kernel_lowering", before)
 
 
-def _compile_and_store(lowered, platform: str, store, name: str):
-    """The full chunk of a `Tiered` start: compiled, then written to the store (when there is one) in
-    this same thread, which the process waits for before it exits."""
+def _compile_and_store(lowered, platform: str, store, name: str, after: Future | None = None):
+    """A program a `Tiered` start builds beside the run: compiled once `after` (when given) is done, then
+    written to the store (when there is one) in this same thread, which the process waits for before it
+    exits."""
+    if after is not None:
+        wait([after])
     compiled, ok = program_store.compile_lowered(lowered, platform)
     if store is not None and ok:
         program_store.save(store, name, compiled)
@@ -189,22 +204,27 @@ def _compile_and_store(lowered, platform: str, store, name: str):
 
 
 class Tiered:
-    """The chunk of a cold start on a GPU: the quick build (`_compile`) runs until `full`, a future of the
-    full build compiling beside it, is ready; every call after that runs the full build. Both take and
-    return the same runner state and compute the same (the same random bits; float rounding aside), so a
-    run may switch between any two chunks. `quick_calls` counts the chunks the quick build ran."""
+    """A program of a cold start on a GPU that compiles beside the run (`_compile`): a call waits until
+    `first` (a future of the quick build) is compiled and runs it until `full` (a future of the full build,
+    if any) is ready; every call after that runs the full build. Both take and return the same arguments and
+    compute the same (the same random bits; float rounding aside), so a run may switch between any two
+    calls. `quick_calls` counts the calls the quick build ran; `ready_at` is the wall time the first build
+    was compiled (None before)."""
 
-    def __init__(self, quick: Callable, full: Future):
-        self.current, self.full, self.quick_calls = quick, full, 0
+    def __init__(self, first: Future, full: Future | None = None):
+        self.first, self.full, self.current, self.quick_calls, self.ready_at = first, full, None, 0, None
+        first.add_done_callback(lambda _: setattr(self, "ready_at", time.time()))
 
     @property
     def compiling(self) -> bool:
-        """The full build is still compiling (a process that ends now waits for it, to store it)."""
-        return self.full is not None and not self.full.done()
+        """A build is still compiling (a process that ends now waits for it, to store it)."""
+        return any(f is not None and not f.done() for f in (self.first, self.full))
 
     def __call__(self, *args):
         if self.full is not None and self.full.done():
             self.current, self.full = self.full.result(), None   # a failed compile raises here
+        elif self.current is None:
+            self.current = self.first.result()
         self.quick_calls += self.full is not None
         return self.current(*args)
 

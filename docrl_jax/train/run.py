@@ -223,7 +223,9 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     tensorboard = pool.submit(metrics.import_tensorboard)
     pool.shutdown(wait=False)
     programs, compile_s = compile_programs(config, placement.devices)
-    console.print(f"{programs.origin} in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)")
+    building = isinstance(programs.chunk, Tiered) and programs.chunk.ready_at is None
+    console.print(f"{programs.origin} in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)"
+                  + ("; the training program compiles on while the run initialises" if building else ""))
     startup.update(programs=programs.origin, compile_s=round(compile_s, 2),
                    launch_to_compiled_s=round(time.time() - launch_time, 2))
     mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
@@ -289,6 +291,12 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     def show(m: dict, steps: int, sps: float, eta: str):
         if primary and not startup.get("launch_to_first_chunk_s"):  # start-up as a user sees it
             startup.update(launch_to_first_chunk_s=round(time.time() - launch_time, 2), device=sharding.device_line())
+            if building and programs.chunk.ready_at is not None:   # the chunk compiled on after the others
+                startup["launch_to_chunk_compiled_s"] = round(programs.chunk.ready_at - launch_time, 2)
+            (run_dir / runs.STARTUP_FILE).write_text(json.dumps(startup, indent=1))
+        if primary and building and programs.chunk.full is None and "quick_chunks" not in startup:
+            # the chunk just run was the full build's first: the quick build ran the ones before
+            startup.update(quick_chunks=programs.chunk.quick_calls, launch_to_full_chunk_s=round(time.time() - launch_time, 2))
             (run_dir / runs.STARTUP_FILE).write_text(json.dumps(startup, indent=1))
         metrics.log_chunk(writer, m, steps, sps)
         display.chunk(steps, sps, eta, metrics.stats_line(m, last_eval))
@@ -320,7 +328,9 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     elif status == EXIT_INTERRUPTED:
         console.print(f"interrupted: checkpoint saved at env step {env_steps:,}; resume with "
                       f"python -m docrl_jax.train --run-dir {run_dir} --resume")
-    if isinstance(programs.chunk, Tiered) and programs.chunk.compiling:   # the process waits for it on exit
-        console.print("the full training program is still compiling; the process ends once it is stored "
-                      "for the next launch (seconds)")
+    compiling = [what for what, p in (("training", programs.chunk), ("evaluation", programs.evaluate))
+                 if isinstance(p, Tiered) and p.compiling]
+    if compiling:   # the process waits for them on exit
+        console.print(f"the full {' and '.join(compiling)} program{'s are' if len(compiling) > 1 else ' is'} still "
+                      "compiling; the process ends once stored for the next launch (seconds)")
     return status

@@ -74,7 +74,7 @@ def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_sto
     monkeypatch.setattr(programs, "_COMPILED", {})
     monkeypatch.setattr(program_store, "folder", lambda: tmp_path)
     release, compile_full = threading.Event(), programs._compile_and_store
-    monkeypatch.setattr(programs, "_compile_and_store", lambda *a: release.wait(60) and compile_full(*a))
+    monkeypatch.setattr(programs, "_compile_and_store", lambda *a, **k: release.wait(60) and compile_full(*a, **k))
     before = jax.config.jax_enable_compilation_cache   # a persistent-cache hit could not be stored on a CPU
     jax.config.update("jax_enable_compilation_cache", False)
     try:
@@ -95,20 +95,55 @@ def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_sto
     assert _leaves_equal(expected, taken_over)   # the full build is the run's own chunk
 
 
-def test_tiered_switches_to_the_full_build_once_ready_and_raises_its_failure():
+def test_tiered_waits_for_its_first_build_then_switches_to_the_full_one_and_raises_failures():
     quick_calls, full_calls = [], []
-    full = Future()
-    chunk = programs.Tiered(lambda s: quick_calls.append(s) or s, full)
-    assert chunk(1) == 1 and chunk(2) == 2 and chunk.quick_calls == 2 and chunk.compiling
+    first, full = Future(), Future()
+    chunk = programs.Tiered(first, full)
+    assert chunk.compiling and chunk.ready_at is None
+    threading.Timer(0.2, first.set_result, [lambda s: quick_calls.append(s) or s]).start()
+    assert chunk(1) == 1 and chunk.ready_at is not None   # the first call waited for the quick build
+    assert chunk(2) == 2 and chunk.quick_calls == 2 and chunk.compiling
     full.set_result(lambda s: full_calls.append(s) or -s)
     assert not chunk.compiling
     assert chunk(3) == -3 and chunk(4) == -4
     assert quick_calls == [1, 2] and full_calls == [3, 4] and chunk.quick_calls == 2
 
-    failed = Future()
-    failed.set_exception(RuntimeError("XLA failed"))
-    with pytest.raises(RuntimeError, match="XLA failed"):
-        programs.Tiered(lambda s: s, failed)(0)
+    for which in ("first", "full"):
+        ok, failed = Future(), Future()
+        ok.set_result(lambda s: s)
+        failed.set_exception(RuntimeError("XLA failed"))
+        with pytest.raises(RuntimeError, match="XLA failed"):
+            (programs.Tiered(failed) if which == "first" else programs.Tiered(ok, failed))(0)
+
+
+def test_a_tiered_start_with_evaluation_lanes_returns_before_its_chunk_and_compiles_the_evaluation_after_it(
+        tmp_path, monkeypatch):
+    # The compiles are recorded, not run: what returns when, and in which order the compiles start.
+    config, devices = easy_config(train__eval_alongside=True), (jax.devices()[0],)
+    monkeypatch.setattr(programs, "_COMPILED", {})
+    started, release_quick = [], threading.Event()
+
+    def compile_lowered(lowered, platform, options=None):
+        name = str(lowered.compiler_ir("stablehlo").operation.attributes["sym_name"]).strip('"')
+        started.append(f"{name} quick" if options else name)
+        if options:
+            release_quick.wait(60)
+        fake = lambda *args: name   # noqa: E731
+        fake.out_info = lowered.out_info
+        return fake, True
+
+    monkeypatch.setattr(program_store, "compile_lowered", compile_lowered)
+    monkeypatch.setattr(program_store, "save", lambda *a: True)
+    try:
+        progs, _ = programs.compile_programs(config, devices, tiered=True)
+        # Returned with the quick chunk still compiling: a run initialises meanwhile.
+        assert progs.chunk.compiling and progs.chunk.ready_at is None and progs.init() == "jit_init"
+        assert isinstance(progs.evaluate, programs.Tiered) and "jit_evaluate" not in started
+    finally:
+        release_quick.set()
+    assert progs.chunk() == "jit_chunk" and progs.evaluate() == "jit_evaluate"   # each waits for its build
+    assert started.index("jit_evaluate") > started.index("jit_chunk quick")
+    assert sorted(started) == ["jit_chunk", "jit_chunk quick", "jit_eval_starts", "jit_evaluate", "jit_init"]
 
 
 def test_kernel_random_is_restored_and_leaves_a_set_value_alone():
