@@ -73,8 +73,11 @@ def child(out: str, quick: dict, hold: set, argv: list[str]) -> int:
     depth = threading.local()
 
     def timed(module, attr: str, label: str) -> None:
-        """Records each outermost call of module.attr (start, end, thread) as a mark named `label`."""
-        f = getattr(module, attr)
+        """Records each outermost call of module.attr (start, end, thread) as a mark named `label` (when the
+        tree has it: an older one may not)."""
+        f = getattr(module, attr, None)
+        if f is None:
+            return
 
         def wrapper(*args, **kwargs):
             outer = not getattr(depth, label, 0)
@@ -99,10 +102,11 @@ def child(out: str, quick: dict, hold: set, argv: list[str]) -> int:
     # The steps of a launch before its first compile (what a tiered start's chunk waits for).
     import jax
     from docrl_jax import memory, sharding
-    from docrl_jax.train import metrics
+    from docrl_jax.train import loop, metrics
     for module, attr, label in ((cli, "_resolve", "config"), (program_store, "prefetch", "prefetch"),
                                 (sharding, "device_line", "device_line"), (sharding, "seed_placement", "placement"),
                                 (memory, "check_memory", "check_memory"), (jax.random, "PRNGKey", "PRNGKey"),
+                                (sharding.SeedPlacement, "seed_keys", "seed_keys"), (loop, "eval_keys", "eval_keys"),
                                 (programs, "store_names", "store_names"), (programs, "_load", "load"),
                                 (programs, "make_trainer", "make_trainer"), (jax, "eval_shape", "eval_shape"),
                                 (metrics, "import_tensorboard", "import_tensorboard")):

@@ -32,21 +32,25 @@ from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 import docrl_jax.envs as envs
 from docrl_jax.config import Config, evaluation_env_kwargs, nominal_env_kwargs, pair_scenario, pairs_own_env
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, trial_starts
+from docrl_jax.sharding import on_host
 
 
 _EVAL_SALT = 0x5EA1
 
 
-def eval_keys(seeds: list[int], env_steps: int) -> jax.Array:
+def eval_keys(seeds: list[int], env_steps: int) -> np.ndarray:
     """Keys (one per seed) of the evaluation at `env_steps`: a function of seed and step only, so a
-    resumed run evaluates on exactly the episodes an uninterrupted one would."""
-    return jnp.stack([jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(s), _EVAL_SALT), env_steps)
-                      for s in seeds])
+    resumed run evaluates on exactly the episodes an uninterrupted one would. Computed on the host
+    (`sharding.on_host`)."""
+    with on_host():
+        return np.stack([np.asarray(jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(s), _EVAL_SALT),
+                                                       env_steps)) for s in seeds])
 
 
 def pair_starts(how: str, key: jax.Array, start, direction: str, n: int) -> tuple[jax.Array, jax.Array]:

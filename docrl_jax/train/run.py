@@ -217,7 +217,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
         (run_dir / runs.CONFIG_FILE).write_text(to_yaml(config))
     plan = schedule(config)
     seeds = [t_cfg.seed + i for i in range(t_cfg.num_seeds)]
-    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
+    keys = placement.seed_keys(seeds)
     console.print("compiling (or loading) the training, evaluation and initialisation programs ...")
     pool = ThreadPoolExecutor(1)  # TensorBoard's import (seconds on some machines) beside the compile
     tensorboard = pool.submit(metrics.import_tensorboard)

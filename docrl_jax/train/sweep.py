@@ -242,7 +242,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     if placement.note:
         console.print(f"[yellow]note:[/] {placement.note}")
     plan = schedule(cfg)
-    keys = placement.put_seeds(np.stack([jax.random.PRNGKey(s) for s in seeds]))
+    keys = placement.seed_keys(seeds)
     hp = jax.tree.map(placement.put_seeds, HParams.stack([HParams.from_agent_config(c.config.agent)
                                                           for c, _ in rows]))
     programs, compile_s = compile_programs(cfg, placement.devices, traced=True)
