@@ -260,8 +260,8 @@ def on_host():
     """Eager JAX operations inside run on the host's CPU: the small key arithmetic between programs. On a
     GPU each would be compiled for it, and a process's first GPU compile takes seconds (2.4 s of a cold
     launch on an H200, before its programs could start compiling). Random bits are the same on either."""
-    try:
-        cpu = jax.devices("cpu")[0]
+    try:   # this process's own (with several processes, jax.devices' first CPU is process 0's)
+        cpu = jax.local_devices(backend="cpu")[0]
     except RuntimeError:   # JAX_PLATFORMS without the CPU
         cpu = None
     with jax.default_device(cpu) if cpu is not None else contextlib.nullcontext():

@@ -71,6 +71,15 @@ def test_plan_devices_refuses_uneven_or_unavailable_counts(args, message):
         plan_devices(*args)
 
 
+def test_seed_keys_are_jax_s_keys_computed_on_the_host():
+    # JAX's threefry seeding puts a 32-bit seed in the key's second word; the keys land where the seeds go.
+    placement = sharding.SeedPlacement((jax.devices()[0],))
+    keys = placement.seed_keys([0, 5, 2**31 - 1])
+    assert keys.dtype == np.uint32 and np.array_equal(np.asarray(keys), [[0, 0], [0, 5], [0, 2**31 - 1]])
+    with sharding.on_host():
+        assert jax.numpy.zeros(2).devices() == {jax.local_devices(backend="cpu")[0]}
+
+
 def test_train_devices_config_values():
     assert load_config("td3_lstm", ["train.devices=all"]).train.devices == 0
     assert load_config("td3_lstm").train.devices == 0
