@@ -26,6 +26,7 @@ import signal
 import sys
 import threading
 import time
+from concurrent import futures
 from dataclasses import dataclass
 from typing import Any, Callable, NamedTuple, NoReturn
 
@@ -203,6 +204,16 @@ def wait(tree: Any, interrupt: Interrupt | None = None, poll_s: float = 0.1) -> 
     return jax.block_until_ready(tree)  # returns at once, or raises the computation's error here
 
 
+def wait_for_build(program: Any, interrupt: Interrupt, poll_s: float = 0.1) -> None:
+    """Returns once `program` can run: at once, or when the first build of a program still compiling (a
+    `docrl_jax.train.programs.Tiered`, whose `first` is its future) is done, answering a Ctrl-C meanwhile."""
+    first = getattr(program, "first", None)
+    while first is not None and not first.done():
+        interrupt.poll()
+        futures.wait([first], timeout=poll_s)
+    interrupt.poll()
+
+
 def _block_quietly(tree: Any) -> None:
     try:
         jax.block_until_ready(tree)
@@ -349,6 +360,8 @@ def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: 
         action(*args)
         eta.add_eval(time.time() - t0)
 
+    interrupt.chunk_started(None)
+    wait_for_build(chunk, interrupt)   # a cold start's chunk may still compile
     while done_chunks < plan.num_chunks:
         t0 = time.time()
         interrupt.chunk_started(eta.next_chunk())

@@ -13,6 +13,8 @@ import os
 import re
 import shutil
 import signal
+import threading
+from concurrent.futures import Future
 from unittest.mock import patch
 
 import jax
@@ -108,6 +110,25 @@ def test_ctrl_c_is_answered_while_the_device_still_computes():
         loop.wait(pending["y"], interrupt)
     assert interrupt.requested and len(said) == 1 and "after the running chunk" in said[0][0]
     assert said[0][1] is False   # printed while the device was still computing
+
+
+def test_a_ctrl_c_while_the_chunk_still_compiles_is_answered_at_once():
+    said, first = [], Future()
+
+    class Recorder:
+        def print(self, text):
+            said.append((text, first.done()))
+
+    class Building:   # a cold start's chunk whose quick build compiles (docrl_jax.train.programs.Tiered)
+        pass
+
+    chunk = Building()
+    chunk.first = first
+    threading.Timer(1.0, first.set_result, [None]).start()
+    with loop.Interrupt(Recorder()) as interrupt:
+        os.kill(os.getpid(), signal.SIGINT)
+        loop.wait_for_build(chunk, interrupt)
+    assert first.done() and interrupt.requested and len(said) == 1 and said[0][1] is False
 
 
 def _interrupting(monkeypatch, times: int, during_save: int = 0, chunk: int = 1):
