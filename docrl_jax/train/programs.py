@@ -14,7 +14,10 @@ A cold start on a GPU (one process) compiles the chunk twice (`Tiered`): a quick
 with (the same computation, less to compile and slower to run: random draws as kernel calls, `kernel_random`;
 the actor's sequence loop rolled, `quick_config`; cuBLAS matrix products, `QUICK_CHUNK_OPTIONS`), and the
 full build, compiled beside it, that takes over from the next chunk once it is ready and is the one stored.
-init, evaluate and eval_starts, whose speed hardly counts, get kernel-call random draws only.
+init, evaluate and eval_starts, whose speed hardly counts, get kernel-call random draws only. Such a start
+returns once init (and eval_starts) are compiled, so the run initialises while its chunk compiles; with
+evaluation lanes the evaluation program, needed only before a checkpoint and at the end, compiles after the
+quick chunk.
 
 traced=True (sweeps): init(keys, total, hp) and chunk(state, hp) also take the agent's
 hyperparameters (`algorithms.HParams`, one float32 per seed row), so rows that differ only in them
