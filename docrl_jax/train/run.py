@@ -328,9 +328,9 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     elif status == EXIT_INTERRUPTED:
         console.print(f"interrupted: checkpoint saved at env step {env_steps:,}; resume with "
                       f"python -m docrl_jax.train --run-dir {run_dir} --resume")
-    compiling = [what for what, p in (("training", programs.chunk), ("evaluation", programs.evaluate))
-                 if isinstance(p, Tiered) and p.compiling]
+    compiling = [what for what, p in (("the training program's full build", programs.chunk),
+                                      ("the evaluation program", programs.evaluate)) if isinstance(p, Tiered) and p.compiling]
     if compiling:   # the process waits for them on exit
-        console.print(f"the full {' and '.join(compiling)} program{'s are' if len(compiling) > 1 else ' is'} still "
-                      "compiling; the process ends once stored for the next launch (seconds)")
+        console.print(f"{' and '.join(compiling)} {'are' if len(compiling) > 1 else 'is'} still compiling; the "
+                      "process ends once stored for the next launch (seconds)")
     return status
