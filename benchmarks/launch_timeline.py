@@ -1,6 +1,8 @@
-"""A cold launch of the train command on one clock: when each program's compile starts and ends, when the
-first chunk runs, how long the quick and the full builds of a tiered start take per chunk. Each launch is a
-fresh process with an empty compilation cache; variants are interleaved within each round.
+"""A launch of the train command on one clock: when each program's compile (or load) starts and ends, when
+the first chunk runs, how long the quick and the full builds of a tiered start take per chunk, how long the
+run's evaluations by the evaluation program take. Each launch is a fresh process with an empty compilation
+cache (`--warm`: each variant's launches share one, filled by a launch before the rounds that is not
+reported); variants are interleaved within each round.
 
     python3 benchmarks/launch_timeline.py --rounds 2 --variant base= \
         --variant ptxas0=quick:xla_gpu_disable_gpuasm_optimizations=true \
@@ -8,8 +10,11 @@ fresh process with an empty compilation cache; variants are interleaved within e
 
 A variant's words:
 - `quick:NAME=VALUE` adds an XLA option to the quick chunk's build (docrl_jax.train.programs.QUICK_CHUNK_OPTIONS);
+- `late:NAME=VALUE` adds an XLA option to the evaluation program's build when it compiles beside training
+  (a tiered start with evaluation lanes);
 - `hold:P,Q` starts the compile of programs P, Q (init, evaluate, eval_starts, chunk_full) only once the
   chunk training starts with has compiled: how much the compiles beside it slow it;
+- `env:NAME=VALUE` sets an environment variable of the launch (e.g. XLA_PYTHON_CLIENT_PREALLOCATE=false);
 - `root:PATH` runs the tree at PATH (docrl_jax, configs, assets; e.g. a git-ignored .old) instead of this one.
 
 The launch clock is the trainer's own (the process's start, docrl_jax.train.cli.process_start_time). Each
@@ -19,7 +24,6 @@ launch is `python -m docrl_jax.train --config CONFIG --set train.total_env_steps
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import os
 import statistics
@@ -43,14 +47,15 @@ def _value(text: str):
         return text
 
 
-def child(out: str, quick: dict, hold: set, argv: list[str]) -> int:
-    """Runs the train command in this process with its compiles, trainer builds and chunk calls timed."""
-    from docrl_jax.train import cli, program_store, programs
+def child(out: str, quick: dict, late: dict, hold: set, argv: list[str]) -> int:
+    """Runs the train command in this process with its compiles, trainer builds and chunk calls timed. The
+    heavy modules are imported where the command imports them, after it starts its programs' prefetch."""
+    from docrl_jax.train import cli, program_store   # light: what the command imports first
     launch = cli.process_start_time()
     now = lambda: round(time.time() - launch, 3)  # noqa: E731
-    events = {"compiles": [], "marks": [], "chunk_calls": []}
+    events = {"compiles": [], "marks": [], "chunk_calls": [], "chunk_seconds": []}
     quick_done, quick_seen = threading.Event(), threading.Event()
-    compile_lowered, call = program_store.compile_lowered, programs.Tiered.__call__
+    compile_lowered = program_store.compile_lowered
 
     def timed_compile(lowered, platform, options=None):
         name = str(lowered.compiler_ir("stablehlo").operation.attributes["sym_name"]).strip('"').removeprefix("jit_")
@@ -58,6 +63,8 @@ def child(out: str, quick: dict, hold: set, argv: list[str]) -> int:
             quick_seen.set()
         # A chunk compiled without options after a quick one is the full build of a tiered start.
         label = "chunk_full" if name == "chunk" and not options and quick_seen.is_set() else name
+        if label == "evaluate" and late and quick_seen.is_set():
+            options = {**(options or {}), **late}
         queued = now()
         if label in hold:
             quick_done.wait()
@@ -92,28 +99,49 @@ def child(out: str, quick: dict, hold: set, argv: list[str]) -> int:
                                             "thread": threading.current_thread().name})
         setattr(module, attr, wrapper)
 
-    def timed_call(self, *args):
-        events["chunk_calls"].append({"t": now(), "build": "quick" if self.full is not None and not self.full.done()
-                                      else "full"})
-        return call(self, *args)
+    def import_heavy_and_time() -> None:
+        """The command's own next step, `from docrl_jax.train.run import ...` (MJX, Flax, Orbax), timed; then
+        the timers on what those modules hold."""
+        start = now()
+        import jax
+        from docrl_jax import memory, sharding
+        from docrl_jax.train import loop, metrics, programs, run
+        events["marks"].append({"what": "import run", "start": start, "end": now(), "thread": "MainThread"})
+        call = programs.Tiered.__call__
 
-    programs.QUICK_CHUNK_OPTIONS = {**programs.QUICK_CHUNK_OPTIONS, **quick}
-    program_store.compile_lowered, programs.Tiered.__call__ = timed_compile, timed_call
-    # The steps of a launch before its first compile (what a tiered start's chunk waits for).
-    import jax
-    from docrl_jax import memory, sharding
-    from docrl_jax.train import loop, metrics
-    for module, attr, label in ((cli, "_resolve", "config"), (program_store, "prefetch", "prefetch"),
-                                (sharding, "device_line", "device_line"), (sharding, "seed_placement", "placement"),
-                                (memory, "check_memory", "check_memory"), (jax.random, "PRNGKey", "PRNGKey"),
-                                (sharding.SeedPlacement, "seed_keys", "seed_keys"), (loop, "eval_keys", "eval_keys"),
-                                (programs, "store_names", "store_names"), (programs, "_load", "load"),
-                                (programs, "make_trainer", "make_trainer"), (jax, "eval_shape", "eval_shape"),
-                                (metrics, "import_tensorboard", "import_tensorboard")):
-        timed(module, attr, label)
-    _import = importlib.import_module("docrl_jax.train.run")   # what cli imports after its config
-    events["marks"].append({"what": "import run", "start": 0.0, "end": now(), "thread": "MainThread"})
-    timed(_import, "compile_programs", "compile_programs")
+        def timed_call(self, *args):
+            events["chunk_calls"].append({"t": now(), "build": "quick" if self.full is not None
+                                          and not self.full.done() else "full"})
+            return call(self, *args)
+
+        add_chunk = loop.Eta.add_chunk
+
+        def timed_chunk(self, seconds: float, learning: bool) -> None:   # every chunk's seconds, as the loop times it
+            events["chunk_seconds"].append({"t": now(), "s": round(seconds, 4), "learning": bool(learning)})
+            return add_chunk(self, seconds, learning)
+
+        programs.QUICK_CHUNK_OPTIONS = {**programs.QUICK_CHUNK_OPTIONS, **quick}
+        programs.Tiered.__call__, loop.Eta.add_chunk = timed_call, timed_chunk
+        for module, attr, label in ((sharding, "device_line", "device_line"), (sharding, "seed_placement", "placement"),
+                                    (memory, "check_memory", "check_memory"), (jax.random, "PRNGKey", "PRNGKey"),
+                                    (sharding.SeedPlacement, "seed_keys", "seed_keys"), (loop, "eval_keys", "eval_keys"),
+                                    (programs, "store_names", "store_names"), (programs, "_load", "load"),
+                                    (programs, "make_trainer", "make_trainer"), (jax, "eval_shape", "eval_shape"),
+                                    (metrics, "import_tensorboard", "import_tensorboard"),
+                                    (loop.Evaluations, "now", "evaluate_now"),
+                                    (loop.Evaluations, "finish", "evaluate_finish"), (run, "compile_programs", "compile_programs")):
+            timed(module, attr, label)
+
+    prefetch = program_store.prefetch
+
+    def prefetch_then_import(config) -> None:
+        start = now()
+        prefetch(config)
+        events["marks"].append({"what": "prefetch", "start": start, "end": now(), "thread": "MainThread"})
+        import_heavy_and_time()
+
+    program_store.compile_lowered, program_store.prefetch = timed_compile, prefetch_then_import
+    timed(cli, "_resolve", "config")
     status = cli.main(argv)
     events["exit"] = now()   # the process may wait on after this for a full build to be stored
     run_dir = argv[argv.index("--run-dir") + 1]
@@ -134,11 +162,17 @@ def summarise(ev: dict) -> dict:
     for c in ev["compiles"]:
         row[f"{c['program']} start"] = c["start"]
         row[f"{c['program']} s"] = round(c["end"] - c["start"], 2)
-    calls = ev["chunk_calls"]
+    # The evaluation program of a tiered start is a Tiered too: its calls, inside the evaluations training
+    # waits for, are not chunks, and a gap between chunks that spans such an evaluation is not a chunk's time.
+    evals = [(m["start"], m["end"]) for m in ev["marks"] if m["what"] in ("evaluate_now", "evaluate_finish")]
+    calls = [c for c in ev["chunk_calls"] if not any(s <= c["t"] <= e for s, e in evals)]
     for build in ("quick", "full"):
-        gaps = [b["t"] - a["t"] for a, b in zip(calls, calls[1:]) if a["build"] == build]
+        gaps = [b["t"] - a["t"] for a, b in zip(calls, calls[1:])
+                if a["build"] == build and not any(a["t"] < s < b["t"] for s, _ in evals)]
         row[f"{build} chunks"] = sum(c["build"] == build for c in calls)
         row[f"{build} s/chunk"] = round(statistics.median(gaps), 3) if gaps else None
+    learning = [c["s"] for c in ev.get("chunk_seconds", []) if c["learning"]][1:]   # the first may warm up
+    row["learning s/chunk"] = round(statistics.median(learning), 3) if learning else None
     return row
 
 
@@ -150,45 +184,53 @@ def main() -> None:
     ap.add_argument("--chunks", type=int, default=20, help="chunks of 409,600 env steps per launch")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                     help="another config override for every launch (repeatable)")
+    ap.add_argument("--warm", action="store_true",
+                    help="each variant's launches share a compilation cache and program store, filled first")
     ap.add_argument("--out")
+    ap.add_argument("--retable", metavar="OUT", help="summarise a finished --out folder again from its launches' JSON")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     a, rest = ap.parse_known_args()
+    if a.retable:
+        retable(a.retable)
+        return
     if a.child:
         spec = json.loads(os.environ["LAUNCH_TIMELINE_SPEC"])
-        sys.exit(child(a.child, spec["quick"], set(spec["hold"]), rest[1:] if rest[:1] == ["--"] else rest))
+        sys.exit(child(a.child, spec["quick"], spec["late"], set(spec["hold"]), rest[1:] if rest[:1] == ["--"] else rest))
     if not a.variant or not a.out:
         ap.error("give --out and at least one --variant NAME=WORDS")
     variants = {}
     for v in a.variant:
         name, _, words = v.partition("=")
-        spec = {"quick": {}, "hold": [], "root": os.getcwd()}
+        spec = {"quick": {}, "late": {}, "env": {}, "hold": [], "root": os.getcwd()}
         for w in words.split():
             kind, _, what = w.partition(":")
-            if kind == "quick" and "=" in what:
+            if kind in ("quick", "late", "env") and "=" in what:
                 k, _, val = what.partition("=")
-                spec["quick"][k] = _value(val)
+                spec[kind][k] = val if kind == "env" else _value(val)
             elif kind == "hold":
                 spec["hold"] += what.split(",")
             elif kind == "root":
                 spec["root"] = os.path.abspath(what)
             else:
-                ap.error(f"variant {name}: {w!r} is not quick:NAME=VALUE, hold:P,Q or root:PATH")
+                ap.error(f"variant {name}: {w!r} is not quick:NAME=VALUE, late:NAME=VALUE, env:NAME=VALUE, hold:P,Q or root:PATH")
         variants[name] = spec
     os.makedirs(a.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix="timeline_")
     rows, meta = [], run_meta()
-    for r in range(a.rounds):
+    rounds = (["fill"] if a.warm else []) + list(range(a.rounds))
+    for r in rounds:
         for name, spec in variants.items():
             tag = f"{name}_r{r}"
+            cache = os.path.join(work, f"cache_{name}" if a.warm else f"cache_{tag}")
             path = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
                     if p and os.path.abspath(p) != os.getcwd()]
-            env = {**os.environ, "PYTHONPATH": os.pathsep.join([spec["root"]] + path),
+            env = {**os.environ, **spec["env"], "PYTHONPATH": os.pathsep.join([spec["root"]] + path),
                    "LAUNCH_TIMELINE_SPEC": json.dumps(spec)}
             out = os.path.join(a.out, f"{tag}.json")
             cmd = [sys.executable, os.path.abspath(__file__), "--child", out, "--", "--config", a.config,
                    "--set", f"train.total_env_steps={409600 * a.chunks}",
                    *[w for x in a.set for w in ("--set", x)], "--run-dir", os.path.join(work, tag),
-                   "--compile-cache", os.path.join(work, f"cache_{tag}"), "--no-progress"]
+                   "--compile-cache", cache, "--no-progress"]
             t0 = time.time()
             with open(os.path.join(a.out, f"{tag}.log"), "w") as log:
                 rc = subprocess.run(cmd, cwd=spec["root"], env=env, stdout=log, stderr=subprocess.STDOUT).returncode
@@ -201,18 +243,41 @@ def main() -> None:
             print(json.dumps(rows[-1]), flush=True)
             with open(os.path.join(a.out, "launch_timeline.json"), "w") as f:
                 json.dump({**meta, "variants": variants, "launches": rows}, f, indent=1)
-    write_table(a.out, meta, variants, rows)
+    write_table(a.out, meta, variants, rows, a.warm)
 
 
-def write_table(out: str, meta: dict, variants: dict, rows: list[dict]) -> None:
+def retable(out: str) -> None:
+    """Rewrites launch_timeline.md/json of a finished folder from the per-launch JSON it holds."""
+    with open(os.path.join(out, "launch_timeline.json")) as f:
+        done = json.load(f)
+    rows = []
+    for r in done["launches"]:
+        path = os.path.join(out, f"{r['variant']}_r{r['round']}.json")
+        if "failed" in r or not os.path.exists(path):
+            rows.append(r)
+            continue
+        with open(path) as f:
+            rows.append({"variant": r["variant"], "round": r["round"], "spawn_to_exit": r["spawn_to_exit"],
+                         **summarise(json.load(f))})
+    meta = {k: v for k, v in done.items() if k not in ("variants", "launches")}
+    with open(os.path.join(out, "launch_timeline.json"), "w") as f:
+        json.dump({**meta, "variants": done["variants"], "launches": rows}, f, indent=1)
+    write_table(out, meta, done["variants"], rows, warm=any(r["round"] == "fill" for r in rows))
+
+
+def write_table(out: str, meta: dict, variants: dict, rows: list[dict], warm: bool = False) -> None:
     keys = ["first_chunk", "launch_to_run_s", "make_trainer at", "chunk start", "chunk s", "launch_to_compiled_s",
             "launch_to_training_s", "init s", "evaluate s", "eval_starts s", "quick s/chunk", "quick chunks",
-            "spawn_to_exit"]
-    lines = [f"# A cold launch on one clock ({meta['gpu']}, {meta['date']})", "", f"Command: `{meta['command']}`  ",
+            "full s/chunk", "learning s/chunk", "evaluate_now s", "evaluate_finish s", "spawn_to_exit"]
+    if warm:
+        keys = ["first_chunk", "import run s", "launch_to_run_s", "load at", "load s", "launch_to_compiled_s",
+                "seed_keys s", "launch_to_training_s", "learning s/chunk", "evaluate_now s", "spawn_to_exit"]
+    lines = [f"# A {'warm' if warm else 'cold'} launch on one clock ({meta['gpu']}, {meta['date']})", "",
+             f"Command: `{meta['command']}`  ",
              f"Versions: {meta['versions']}", "", "Medians over rounds (s after launch, s of compile, s per chunk):", "",
              "| variant | " + " | ".join(keys) + " |", "|---|" + "---|" * len(keys)]
     for name in variants:
-        ok = [r for r in rows if r["variant"] == name and "failed" not in r]
+        ok = [r for r in rows if r["variant"] == name and "failed" not in r and r["round"] != "fill"]
         cell = lambda k: (f"{statistics.median(v):.2f}" if (v := [r[k] for r in ok if r.get(k) is not None])  # noqa: E731
                           else "-")
         lines.append(f"| {name} | " + " | ".join(cell(k) for k in keys) + " |")
