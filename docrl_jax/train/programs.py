@@ -17,7 +17,7 @@ full build, compiled beside it, that takes over from the next chunk once it is r
 init, evaluate and eval_starts, whose speed hardly counts, get kernel-call random draws only. Such a start
 returns once init (and eval_starts) are compiled, so the run initialises while its chunk compiles; with
 evaluation lanes the evaluation program, needed only before a checkpoint and at the end, compiles after the
-quick chunk.
+quick chunk, without autotuning (`BESIDE_TRAINING_OPTIONS`).
 
 traced=True (sweeps): init(keys, total, hp) and chunk(state, hp) also take the agent's
 hyperparameters (`algorithms.HParams`, one float32 per seed row), so rows that differ only in them
@@ -150,7 +150,8 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
         if tiered and name == "evaluate" and eval_starts is not None:
             # With evaluation lanes the program evaluates only before a checkpoint and at the end: it
             # compiles after the quick chunk, leaving it the machine's cores.
-            later[name] = pool.submit(_compile_and_store, lowered, platform, store, names[name], after=first)
+            later[name] = pool.submit(_compile_and_store, lowered, platform, store, names[name], after=first,
+                                      options=BESIDE_TRAINING_OPTIONS)
         else:
             done[name] = pool.submit(program_store.compile_lowered, lowered, platform)
     if tiered:
@@ -171,6 +172,11 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
 # matrix products and the replay sequences' loop rolled (`quick_config`), each less for XLA to compile
 # and slower to run, for the chunks until the full build is ready.
 QUICK_CHUNK_OPTIONS = {"xla_gpu_enable_triton_gemm": False}
+
+# The evaluation program of a tiered start compiles while training runs, so XLA's autotuner would time its
+# candidate kernels on a busy GPU and slow the chunks it shares the GPU with. Without autotuning it compiles
+# in a third of the time and runs as fast (its matrices are small): docs/BENCHMARKS.md, "Start-up".
+BESIDE_TRAINING_OPTIONS = {"xla_gpu_autotune_level": 0}
 
 
 def quick_config(config: Config) -> Config:
@@ -194,13 +200,14 @@ def kernel_random(on: bool):
         jax.config.update("jax_threefry_gpu_kernel_lowering", before)
 
 
-def _compile_and_store(lowered, platform: str, store, name: str, after: Future | None = None):
-    """A program a `Tiered` start builds beside the run: compiled once `after` (when given) is done, then
-    written to the store (when there is one) in this same thread, which the process waits for before it
-    exits."""
+def _compile_and_store(lowered, platform: str, store, name: str, after: Future | None = None,
+                       options: dict | None = None):
+    """A program a `Tiered` start builds beside the run: compiled (with XLA `options`, when given) once
+    `after` (when given) is done, then written to the store (when there is one) in this same thread, which
+    the process waits for before it exits."""
     if after is not None:
         wait([after])
-    compiled, ok = program_store.compile_lowered(lowered, platform)
+    compiled, ok = program_store.compile_lowered(lowered, platform, options)
     if store is not None and ok:
         program_store.save(store, name, compiled)
     return compiled
@@ -230,6 +237,27 @@ class Tiered:
             self.current = self.first.result()
         self.quick_calls += self.full is not None
         return self.current(*args)
+
+
+def chunk_building(progs: Programs) -> bool:
+    """A tiered start's chunk has no build ready yet (compile_programs returned before it)."""
+    return isinstance(progs.chunk, Tiered) and progs.chunk.ready_at is None
+
+
+def building_note(progs: Programs) -> str:
+    """What the compile line of a launch adds while a tiered start's chunk still compiles (else '')."""
+    return "; the training program compiles on while the run initialises" if chunk_building(progs) else ""
+
+
+def still_compiling_line(progs: Programs) -> str | None:
+    """The line a process prints at its end while builds of a tiered start still compile (the process waits
+    for them, to store them for the next launch), else None."""
+    compiling = [what for what, p in (("the training program's full build", progs.chunk),
+                                      ("the evaluation program", progs.evaluate)) if isinstance(p, Tiered) and p.compiling]
+    if not compiling:
+        return None
+    return (f"{' and '.join(compiling)} {'are' if len(compiling) > 1 else 'is'} still compiling; the process ends "
+            "once stored for the next launch (seconds)")
 
 
 def _jitted(config: Config, devices: tuple, traced: bool):

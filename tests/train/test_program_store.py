@@ -116,6 +116,25 @@ def test_tiered_waits_for_its_first_build_then_switches_to_the_full_one_and_rais
             (programs.Tiered(failed) if which == "first" else programs.Tiered(ok, failed))(0)
 
 
+def test_a_launch_says_what_still_compiles_at_its_start_and_its_end():
+    """run and sweep print these lines: while the chunk has no build the compile line says so, and at the end
+    the process names the builds it waits for."""
+    first, full, evaluation = Future(), Future(), Future()
+    progs = programs.Programs(init=None, chunk=programs.Tiered(first, full), evaluate=programs.Tiered(evaluation),
+                              state_shape=None)
+    assert programs.chunk_building(progs) and "compiles on" in programs.building_note(progs)
+    assert programs.still_compiling_line(progs).startswith(
+        "the training program's full build and the evaluation program are still compiling")
+    first.set_result(None)
+    evaluation.set_result(None)
+    assert programs.building_note(progs) == "" and programs.still_compiling_line(progs).startswith(
+        "the training program's full build is still compiling")
+    full.set_result(None)
+    assert programs.still_compiling_line(progs) is None
+    loaded = progs._replace(chunk=lambda *a: None, evaluate=lambda *a: None)   # a warm start's programs
+    assert not programs.chunk_building(loaded) and programs.still_compiling_line(loaded) is None
+
+
 def test_a_tiered_start_with_evaluation_lanes_returns_before_its_chunk_and_compiles_the_evaluation_after_it(
         tmp_path, monkeypatch):
     # The compiles are recorded, not run: what returns when, and in which order the compiles start.
@@ -125,13 +144,16 @@ def test_a_tiered_start_with_evaluation_lanes_returns_before_its_chunk_and_compi
 
     def compile_lowered(lowered, platform, options=None):
         name = str(lowered.compiler_ir("stablehlo").operation.attributes["sym_name"]).strip('"')
-        started.append(f"{name} quick" if options else name)
-        if options:
+        quick = options == programs.QUICK_CHUNK_OPTIONS
+        started.append(f"{name} quick" if quick else name)
+        compiled_with[name] = options
+        if quick:
             release_quick.wait(60)
         fake = lambda *args: name   # noqa: E731
         fake.out_info = lowered.out_info
         return fake, True
 
+    compiled_with = {}
     monkeypatch.setattr(program_store, "compile_lowered", compile_lowered)
     monkeypatch.setattr(program_store, "save", lambda *a: True)
     try:
@@ -144,6 +166,8 @@ def test_a_tiered_start_with_evaluation_lanes_returns_before_its_chunk_and_compi
     assert progs.chunk() == "jit_chunk" and progs.evaluate() == "jit_evaluate"   # each waits for its build
     assert started.index("jit_evaluate") > started.index("jit_chunk quick")
     assert sorted(started) == ["jit_chunk", "jit_chunk quick", "jit_eval_starts", "jit_evaluate", "jit_init"]
+    # The evaluation, compiled beside training, without XLA's autotuner; the full chunk as a warm start runs it.
+    assert compiled_with["jit_evaluate"] == {"xla_gpu_autotune_level": 0} and compiled_with["jit_chunk"] is None
 
 
 def test_kernel_random_is_restored_and_leaves_a_set_value_alone():
