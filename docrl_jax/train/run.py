@@ -31,7 +31,7 @@ from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
                                   make_console, run_chunks, schedule)
-from docrl_jax.train.programs import Tiered, compile_programs
+from docrl_jax.train.programs import building_note, chunk_building, compile_programs, still_compiling_line
 
 __all__ = ["check_resume_changes", "check_run_dir", "run"]
 
@@ -223,9 +223,9 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     tensorboard = pool.submit(metrics.import_tensorboard)
     pool.shutdown(wait=False)
     programs, compile_s = compile_programs(config, placement.devices)
-    building = isinstance(programs.chunk, Tiered) and programs.chunk.ready_at is None
+    building = chunk_building(programs)
     console.print(f"{programs.origin} in {compile_s:.1f} s ({time.time() - launch_time:.1f} s after launch)"
-                  + ("; the training program compiles on while the run initialises" if building else ""))
+                  + building_note(programs))
     startup.update(programs=programs.origin, compile_s=round(compile_s, 2),
                    launch_to_compiled_s=round(time.time() - launch_time, 2))
     mngr = checkpoint.manager(run_dir, keep=t_cfg.keep_checkpoints, create=True)
@@ -328,9 +328,6 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     elif status == EXIT_INTERRUPTED:
         console.print(f"interrupted: checkpoint saved at env step {env_steps:,}; resume with "
                       f"python -m docrl_jax.train --run-dir {run_dir} --resume")
-    compiling = [what for what, p in (("the training program's full build", programs.chunk),
-                                      ("the evaluation program", programs.evaluate)) if isinstance(p, Tiered) and p.compiling]
-    if compiling:   # the process waits for them on exit
-        console.print(f"{' and '.join(compiling)} {'are' if len(compiling) > 1 else 'is'} still compiling; the "
-                      "process ends once stored for the next launch (seconds)")
+    if line := still_compiling_line(programs):
+        console.print(line)
     return status

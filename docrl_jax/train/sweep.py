@@ -58,7 +58,7 @@ from docrl_jax.train import metrics
 from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
                                   exit_process, make_console, run_chunks, schedule)
 from docrl_jax.train.program_store import enable_compile_cache
-from docrl_jax.train.programs import compile_programs
+from docrl_jax.train.programs import building_note, compile_programs, still_compiling_line
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
 
 SWEEP_FILE = runs.SWEEP_FILE
@@ -246,7 +246,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     hp = jax.tree.map(placement.put_seeds, HParams.stack([HParams.from_agent_config(c.config.agent)
                                                           for c, _ in rows]))
     programs, compile_s = compile_programs(cfg, placement.devices, traced=True)
-    console.print(f"{programs.origin} in {compile_s:.1f} s")
+    console.print(f"{programs.origin} in {compile_s:.1f} s{building_note(programs)}")
     total = placement.put_replicated(np.asarray(plan.total_env_steps, np.int32))
     state = programs.init(keys, total, hp)
     trained_actor = [c.config.train.eval_trained_actor and c.config.agent.policy_average_tau < 1.0 for c, _ in rows]
@@ -283,6 +283,8 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     evals.done()
     _, _, status = run_chunks(plan, programs.chunk, state, 0, hooks, evaluations, evals, None, interrupt,
                               get=placement.get, hp=(hp,), num_seeds=len(rows))
+    if line := still_compiling_line(programs):
+        console.print(line)
     return status
 
 
