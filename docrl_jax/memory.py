@@ -6,7 +6,8 @@ A run's device memory is dominated by two things that the config alone determine
 
   * the replay buffers (`replay_bytes`): per stored step the obs, next obs, action, reward and actor
     carry in float32, plus three bool flags, for num_envs x (buffer_size // num_envs) steps per seed;
-  * one gradient update (`update_bytes`): the sampled batch (batch_size x seq_len stored steps) and
+  * one gradient update (`update_bytes`): the sampled batches (batch_size x seq_len stored steps each, the
+    vectorised step's updates_per_step of them drawn together) and
     the critics' activations and gradients, which grow with batch_size x the trained steps x the
     critics' widths and are what a too-large replay.batch_size exhausts.
 
@@ -77,8 +78,9 @@ def critic_activation_bytes(c: Config) -> int:
 
 
 def update_bytes(c: Config) -> int:
-    """Estimated bytes one gradient update needs beyond the replay buffers, one seed."""
-    return batch_bytes(c) + critic_activation_bytes(c)
+    """Estimated bytes the gradient updates need beyond the replay buffers, one seed: the batches of a
+    vectorised step's updates, drawn together (docrl_jax.train.trainer), and one update's activations."""
+    return batch_bytes(c) * max(1, c.train.updates_per_step) + critic_activation_bytes(c)
 
 
 def available_device_bytes(device=None) -> tuple[int | None, str]:
@@ -139,8 +141,9 @@ def check_memory(c: Config, devices: Sequence | None = None) -> None:
     if replay + update > free:
         r = c.replay
         raise ConfigError(
-            f"replay.batch_size={r.batch_size}: one gradient update needs an estimated {update / 2**30:.2f} GiB "
-            f"({held}: the batch of {r.batch_size} x seq_len={r.seq_len} steps and the critics' activations "
+            f"replay.batch_size={r.batch_size}: the gradient updates need an estimated {update / 2**30:.2f} GiB "
+            f"({held}: {max(1, c.train.updates_per_step)} batches of {r.batch_size} x seq_len={r.seq_len} steps, "
+            f"drawn together for a vectorised step's updates, and one update's critics' activations "
             f"for {r.batch_size} x {r.seq_len - r.burn_in} trained steps x critic_hidden="
             f"{list(c.agent.critic_hidden)}) beside {replay / 2**30:.2f} GiB of replay buffers, "
             f"{(replay + update) / 2**30:.2f} GiB in all, more than the {free / 2**30:.2f} GiB of {what}; "

@@ -38,7 +38,7 @@ def test_a_batch_too_large_for_the_device_is_refused_before_compile(monkeypatch)
     huge = load_config("td3_lstm", ["replay.batch_size=100000"], backend="gpu")
     assert 45 * GIB < memory.critic_activation_bytes(huge) < 55 * GIB
     _free(monkeypatch, 40.0)
-    with pytest.raises(ConfigError, match=r"replay.batch_size=100000: one gradient update needs an estimated "
+    with pytest.raises(ConfigError, match=r"replay.batch_size=100000: the gradient updates need an estimated "
                                           r"\d+\.\d\d GiB .*more than the 40\.00 GiB of NVIDIA H100 80GB HBM3 "
                                           r"memory; lower replay.batch_size"):
         memory.check_memory(huge, devices=jax.devices()[:1])

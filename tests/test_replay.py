@@ -75,3 +75,14 @@ def test_arguments_are_validated():
         make_sequence_buffer(2, 8, 0, 4)
     with pytest.raises(ValueError, match="bool 'start' field"):
         make_sequence_buffer(2, 8, 4, 4).init({"obs": jnp.zeros(3)})
+
+
+def test_batches_drawn_together_are_the_ones_each_key_draws_alone():
+    # The trainer draws all the updates of a step in one vmapped call: each batch must be its own key's.
+    buf, state, _ = _filled(25)
+    keys = jax.vmap(jax.random.split)(jax.random.split(jax.random.PRNGKey(3), 4))[:, 0]
+    together = jax.jit(jax.vmap(buf.sample, (None, 0)))(state, keys)
+    for i, key in enumerate(keys):
+        alone = buf.sample(state, key)
+        jax.tree.map(lambda a, b: np.testing.assert_array_equal(a[i], b), together, alone)
+    assert not np.array_equal(together["time"][0], together["time"][1])   # different keys, different draws

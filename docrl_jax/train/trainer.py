@@ -193,12 +193,14 @@ def make_trainer(config: Config) -> Trainer:
                 levels = pool.record(levels, level, done, arrivals > 0)
                 level = jnp.where(done, next_level, level)
 
-            # 4. Gradient updates once start_steps are collected and every env holds a sequence.
+            # 4. Gradient updates once start_steps are collected and every env holds a sequence. The
+            # updates' batches are drawn together, one gather per stored field instead of one per update
+            # (the same sequences as drawing each in its update: vmap draws each key's own bits).
             def updates(agent_state, key):
-                def one(a, k):
-                    k_sample, k_loss = jax.random.split(k)
-                    return agent.update(a, buffer.sample(buf, k_sample), k_loss, progress, hp)
-                agent_state, m = jax.lax.scan(one, agent_state, jax.random.split(key, t.updates_per_step))
+                keys = jax.vmap(jax.random.split)(jax.random.split(key, t.updates_per_step))  # each: (sample, loss)
+                batches = jax.vmap(buffer.sample, (None, 0))(buf, keys[:, 0])
+                agent_state, m = jax.lax.scan(lambda a, x: agent.update(a, x[0], x[1], progress, hp), agent_state,
+                                              (batches, keys[:, 1]))
                 return agent_state, _update_summary(m)
 
             learn = (env_steps > t.start_steps) & buffer.can_sample(buf) & (t.updates_per_step > 0)
