@@ -210,13 +210,14 @@ def run_sweep(combos: list[Combination], groups: list[Group], grid: dict[str, li
         metrics.write_header(d / runs.METRICS_FILE, columns(grid))
     status = EXIT_OK
     diverged: dict[str, list] = {}
+    built: list = []   # each group's programs: builds of a tiered start may still compile at the end
     try:
         with Interrupt(console, action="writing the table") as interrupt:
             for i, group in enumerate(groups):
                 names = ", ".join(c.name for c in group.combinations)
                 console.print(f"[bold]group {i + 1}/{len(groups)}[/] ({names}): {group.config.train.num_seeds} "
                               f"rows in one program")
-                status = _run_group(group, grid, run_dir, console, interrupt, diverged)
+                status = _run_group(group, grid, run_dir, console, interrupt, diverged, built)
                 if status != EXIT_OK:
                     break
     except KeyboardInterrupt:  # the third Ctrl-C: no waiting for the running chunk
@@ -225,13 +226,17 @@ def run_sweep(combos: list[Combination], groups: list[Group], grid: dict[str, li
         console.print("interrupted: the table covers the evaluations written so far")
     write_summary(run_dir, grid, diverged)
     console.print(f"table: {run_dir / TABLE_MD}")
+    for line in dict.fromkeys(still_compiling_line(p) for p in built):
+        if line:   # the process waits for them on exit
+            console.print(line)
     return status
 
 
 def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Interrupt,
-               diverged: dict[str, list]) -> int:
+               diverged: dict[str, list], built: list) -> int:
     """One group's program through the chunk loop: evaluations at step 0, when due and at the end.
-    Adds {combination name: [seeds whose losses became non-finite]} to `diverged`."""
+    Adds {combination name: [seeds whose losses became non-finite]} to `diverged` and its programs to
+    `built`."""
     import jax
 
     start = time.time()
@@ -246,6 +251,7 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     hp = jax.tree.map(placement.put_seeds, HParams.stack([HParams.from_agent_config(c.config.agent)
                                                           for c, _ in rows]))
     programs, compile_s = compile_programs(cfg, placement.devices, traced=True)
+    built.append(programs)
     console.print(f"{programs.origin} in {compile_s:.1f} s{building_note(programs)}")
     total = placement.put_replicated(np.asarray(plan.total_env_steps, np.int32))
     state = programs.init(keys, total, hp)
@@ -283,8 +289,6 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
     evals.done()
     _, _, status = run_chunks(plan, programs.chunk, state, 0, hooks, evaluations, evals, None, interrupt,
                               get=placement.get, hp=(hp,), num_seeds=len(rows))
-    if line := still_compiling_line(programs):
-        console.print(line)
     return status
 
 
