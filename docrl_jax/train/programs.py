@@ -173,9 +173,10 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
 # and slower to run, for the chunks until the full build is ready.
 QUICK_CHUNK_OPTIONS = {"xla_gpu_enable_triton_gemm": False}
 
-# The evaluation program of a tiered start compiles while training runs, so XLA's autotuner would time its
-# candidate kernels on a busy GPU and slow the chunks it shares the GPU with. Without autotuning it compiles
-# in a third of the time and runs as fast (its matrices are small): docs/BENCHMARKS.md, "Start-up".
+# The evaluation program of a tiered start compiles while training runs, where XLA's autotuner would time its
+# candidate kernels on the GPU training keeps busy. Without autotuning it compiles in a third to three
+# quarters of the time and runs as fast (its matrices are small), so a stop or a checkpoint early in a cold
+# run waits less for it; the chunks' pace was the same either way (docs/BENCHMARKS.md, "Start-up").
 BESIDE_TRAINING_OPTIONS = {"xla_gpu_autotune_level": 0}
 
 
