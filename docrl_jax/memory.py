@@ -67,6 +67,12 @@ def batch_bytes(c: Config) -> int:
     return c.replay.batch_size * c.replay.seq_len * step_bytes(c)
 
 
+def batches_drawn(c: Config) -> int:
+    """Batches a vectorised step holds at once, one seed: its updates draw theirs together
+    (docrl_jax.train.trainer); counted as one when it makes no update."""
+    return max(1, c.train.updates_per_step)
+
+
 def critic_activation_bytes(c: Config) -> int:
     """Estimated bytes of the critics' activations and gradients in one update, one seed: the critics
     run on the trained steps only (seq_len - burn_in), batch_size x those x sum(critic_hidden) floats
@@ -80,7 +86,7 @@ def critic_activation_bytes(c: Config) -> int:
 def update_bytes(c: Config) -> int:
     """Estimated bytes the gradient updates need beyond the replay buffers, one seed: the batches of a
     vectorised step's updates, drawn together (docrl_jax.train.trainer), and one update's activations."""
-    return batch_bytes(c) * max(1, c.train.updates_per_step) + critic_activation_bytes(c)
+    return batch_bytes(c) * batches_drawn(c) + critic_activation_bytes(c)
 
 
 def available_device_bytes(device=None) -> tuple[int | None, str]:
@@ -142,7 +148,7 @@ def check_memory(c: Config, devices: Sequence | None = None) -> None:
         r = c.replay
         raise ConfigError(
             f"replay.batch_size={r.batch_size}: the gradient updates need an estimated {update / 2**30:.2f} GiB "
-            f"({held}: {max(1, c.train.updates_per_step)} batches of {r.batch_size} x seq_len={r.seq_len} steps, "
+            f"({held}: {batches_drawn(c)} batches of {r.batch_size} x seq_len={r.seq_len} steps, "
             f"drawn together for a vectorised step's updates, and one update's critics' activations "
             f"for {r.batch_size} x {r.seq_len - r.burn_in} trained steps x critic_hidden="
             f"{list(c.agent.critic_hidden)}) beside {replay / 2**30:.2f} GiB of replay buffers, "
