@@ -2,7 +2,8 @@
 the first chunk runs, how long the quick and the full builds of a tiered start take per chunk, how long the
 run's evaluations by the evaluation program take. Each launch is a fresh process with an empty compilation
 cache (`--warm`: each variant's launches share one, filled by a launch before the rounds that is not
-reported); variants are interleaved within each round.
+reported; `--one-store`: one store for all variants, for variants that differ only in `env:` words); variants
+are interleaved within each round.
 
     python3 benchmarks/launch_timeline.py --rounds 2 --variant base= \
         --variant ptxas0=quick:xla_gpu_disable_gpuasm_optimizations=true \
@@ -186,6 +187,9 @@ def main() -> None:
                     help="another config override for every launch (repeatable)")
     ap.add_argument("--warm", action="store_true",
                     help="each variant's launches share a compilation cache and program store, filled first")
+    ap.add_argument("--one-store", action="store_true",
+                    help="with --warm: every variant's launches share one store, filled once by the first variant "
+                         "(for variants that differ only in env: words, which compile the same programs)")
     ap.add_argument("--out")
     ap.add_argument("--retable", metavar="OUT", help="summarise a finished --out folder again from its launches' JSON")
     ap.add_argument("--child", help=argparse.SUPPRESS)
@@ -217,11 +221,17 @@ def main() -> None:
     os.makedirs(a.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix="timeline_")
     rows, meta = [], run_meta()
+    if a.one_store and (not a.warm or any(s["quick"] or s["late"] or s["hold"] or s["root"] != os.getcwd()
+                                          for s in variants.values())):
+        ap.error("--one-store needs --warm and variants that differ only in env: words")
     rounds = (["fill"] if a.warm else []) + list(range(a.rounds))
     for r in rounds:
         for name, spec in variants.items():
+            if r == "fill" and a.one_store and name != next(iter(variants)):
+                continue
             tag = f"{name}_r{r}"
-            cache = os.path.join(work, f"cache_{name}" if a.warm else f"cache_{tag}")
+            store = "all" if a.one_store else name
+            cache = os.path.join(work, f"cache_{store}" if a.warm else f"cache_{tag}")
             path = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
                     if p and os.path.abspath(p) != os.getcwd()]
             env = {**os.environ, **spec["env"], "PYTHONPATH": os.pathsep.join([spec["root"]] + path),
