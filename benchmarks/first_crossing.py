@@ -34,7 +34,8 @@ NEVER = 10 ** 6
 
 def curves(path: str) -> dict[str, dict[int, tuple[float, float]]]:
     """seed -> chunk -> (A-W, W-A) success; a chunk is the first row's env-step spacing."""
-    rows = list(csv.DictReader(open(path, newline="")))
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
     steps = sorted({int(r["env_steps"]) for r in rows})
     chunk = steps[1] - steps[0]
     out: dict = defaultdict(dict)

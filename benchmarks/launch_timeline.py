@@ -218,12 +218,12 @@ def main() -> None:
             else:
                 ap.error(f"variant {name}: {w!r} is not quick:NAME=VALUE, late:NAME=VALUE, env:NAME=VALUE, hold:P,Q or root:PATH")
         variants[name] = spec
-    os.makedirs(a.out, exist_ok=True)
-    work = tempfile.mkdtemp(prefix="timeline_")
-    rows, meta = [], run_meta()
     if a.one_store and (not a.warm or any(s["quick"] or s["late"] or s["hold"] or s["root"] != os.getcwd()
                                           for s in variants.values())):
         ap.error("--one-store needs --warm and variants that differ only in env: words")
+    os.makedirs(a.out, exist_ok=True)
+    work = tempfile.mkdtemp(prefix="timeline_")
+    rows, meta = [], run_meta()
     rounds = (["fill"] if a.warm else []) + list(range(a.rounds))
     for r in rounds:
         for name, spec in variants.items():
@@ -247,13 +247,21 @@ def main() -> None:
             if rc != 0 or not os.path.exists(out):
                 rows.append({"variant": name, "round": r, "failed": rc})
             else:
-                with open(out) as f:
-                    rows.append({"variant": name, "round": r, "spawn_to_exit": round(time.time() - t0, 2),
-                                 **summarise(json.load(f))})
+                rows.append(launch_row(name, r, round(time.time() - t0, 2), out))
             print(json.dumps(rows[-1]), flush=True)
-            with open(os.path.join(a.out, "launch_timeline.json"), "w") as f:
-                json.dump({**meta, "variants": variants, "launches": rows}, f, indent=1)
+            write_json(a.out, meta, variants, rows)
     write_table(a.out, meta, variants, rows, a.warm)
+
+
+def launch_row(variant: str, rnd, spawn_to_exit: float, events: str) -> dict:
+    """One launch's row of the table, from its events file."""
+    with open(events) as f:
+        return {"variant": variant, "round": rnd, "spawn_to_exit": spawn_to_exit, **summarise(json.load(f))}
+
+
+def write_json(out: str, meta: dict, variants: dict, rows: list[dict]) -> None:
+    with open(os.path.join(out, "launch_timeline.json"), "w") as f:
+        json.dump({**meta, "variants": variants, "launches": rows}, f, indent=1)
 
 
 def retable(out: str) -> None:
@@ -263,15 +271,10 @@ def retable(out: str) -> None:
     rows = []
     for r in done["launches"]:
         path = os.path.join(out, f"{r['variant']}_r{r['round']}.json")
-        if "failed" in r or not os.path.exists(path):
-            rows.append(r)
-            continue
-        with open(path) as f:
-            rows.append({"variant": r["variant"], "round": r["round"], "spawn_to_exit": r["spawn_to_exit"],
-                         **summarise(json.load(f))})
+        failed = "failed" in r or not os.path.exists(path)
+        rows.append(r if failed else launch_row(r["variant"], r["round"], r["spawn_to_exit"], path))
     meta = {k: v for k, v in done.items() if k not in ("variants", "launches")}
-    with open(os.path.join(out, "launch_timeline.json"), "w") as f:
-        json.dump({**meta, "variants": done["variants"], "launches": rows}, f, indent=1)
+    write_json(out, meta, done["variants"], rows)
     write_table(out, meta, done["variants"], rows, warm=any(r["round"] == "fill" for r in rows))
 
 
