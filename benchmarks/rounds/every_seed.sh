@@ -10,7 +10,8 @@
 #   python3 benchmarks/every_seed_table.py round_every_seed.tar        (here, the table)
 # gpu_lanes' train adds --set name=NAME (a label; no program or result depends on it) and --no-progress.
 # Old beside new on one host: SIDES="new old" (OLD_ARGS: the old side's overrides, e.g. --set
-# agent.policy_average_tau_start=0) gives each seed an old launch too, stopped at 90 % (gpu_lanes'
+# agent.policy_average_tau_start=0) gives each seed an old launch too, and NEW_ARGS the new side's (e.g. a
+# candidate default, --set agent.gamma=0.995, against the packaged one), stopped at 90 % (gpu_lanes'
 # `target`: a time to 90 % without an end or evaluations), named old_sSEED and run before or after the
 # new one in turn, so neither side always goes first. LANES sets the lanes (N lanes: seeds FIRST+lane, +N, ...);
 # FIRST (default 4701) the first of the ten seeds, so a later round can fly ten seeds no earlier round saw;
@@ -22,7 +23,7 @@ LANES=${LANES:-"0 1 2 3"}
 export DOCRL_JAX_COMPILE_CACHE=$R/cache
 EVAL="--trials ${TRIALS:-100} --scenarios 1,2,3"
 new_side() {
-  train s$1 "td3_lstm seed $1" --config td3_lstm --set train.seed=$1 ${EXTRA:-}
+  train s$1 "td3_lstm seed $1" --config td3_lstm --set train.seed=$1 ${NEW_ARGS:-} ${EXTRA:-}
   for which in ${WHICH:-final best}; do
     evaluator s${1}_$which "td3_lstm seed $1 $which" $R/runs/s$1 -- --which $which $EVAL
   done
