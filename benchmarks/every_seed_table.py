@@ -5,7 +5,8 @@ launches of benchmarks/rounds/recipe_end.sh (named RECIPE_sI: one table per reci
     python3 benchmarks/every_seed_table.py DIR        (a folder holding pack/, or the pack folder itself)
 
 One table per side of the round (SIDES: sSEED is the new side, old_sSEED the old one, stopped at
-90 % without evaluations). Per launch (seed): cold or warm (startup.json: programs compiled or loaded from the round's shared
+90 % without evaluations), its title naming the settings of the runs' config.yaml that set the two sides apart
+(NEW_ARGS, OLD_ARGS). Per launch (seed): cold or warm (startup.json: programs compiled or loaded from the round's shared
 cache, and the seconds that took); launch to 90 % both ways on the in-training paper pairs (metrics.csv's
 wall_time_s, seconds after the process started, of the first evaluation with both directions at the
 target: benchmarks/time_to_success.py's `reached`) and the env steps there; launch to end (gpu_lanes'
@@ -37,6 +38,9 @@ from pathlib import Path
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from ab_summary import chunk_steps_per_s  # noqa: E402
 from time_to_success import read_rows, reached  # noqa: E402
+
+from docrl_jax import runs  # noqa: E402
+from docrl_jax.config import ConfigError, differences, load_config  # noqa: E402
 
 TARGET = 0.9
 # Issue 47's goal for every policy, by the evaluator: (scenario, success both ways at least).
@@ -103,6 +107,26 @@ def evaluator_success(eval_dir: Path) -> dict | None:
                                                 for r in rows}}
 
 
+def run_config(run_dir: Path):
+    """The run's resolved config, or None where it is missing or no longer loads (an older round's keys)."""
+    path = run_dir / runs.CONFIG_FILE
+    try:
+        return load_config(path) if path.is_file() else None
+    except ConfigError:
+        return None
+
+
+def side_settings(launches: list[dict], side: str, other: str) -> dict:
+    """{'section.key': value} of the settings that set `side`'s launches apart from `other`'s: keys on which
+    every launch of each side agrees and the two sides differ (so not the seed, nor the run's name)."""
+    mine = [r["config"] for r in launches if r["side"] == side]
+    theirs = [r["config"] for r in launches if r["side"] == other]
+    if not mine or not theirs or any(c is None for c in mine + theirs):
+        return {}
+    varies = {k for cs in (mine, theirs) for c in cs[1:] for k in differences(cs[0], c)}
+    return {k: a for k, (a, _) in differences(mine[0], theirs[0]).items() if k not in varies}
+
+
 def launch(work: Path, run_dir: Path, ends: dict) -> dict:
     name = run_dir.name
     side = name.rsplit("_", 1)[0] if "_" in name else "new"   # the round's names: sSEED, old_sSEED
@@ -115,7 +139,7 @@ def launch(work: Path, run_dir: Path, ends: dict) -> dict:
         rate = chunk_steps_per_s(str(log)) if log.is_file() else None
     except statistics.StatisticsError:  # a run too short to have learning chunks
         rate = None
-    return {"name": name, "side": side, "seed": int(float(last["seed"])) if last else None,
+    return {"name": name, "side": side, "seed": int(float(last["seed"])) if last else None, "config": run_config(run_dir),
             "cold": {"compiled": True, "loaded": False}.get(start.get("programs")),
             "compile_s": start.get("compile_s"), "first_chunk_s": start.get("launch_to_first_chunk_s"),
             "time_to_90_s": float(hit["wall_time_s"]) if hit else None,
@@ -162,7 +186,7 @@ def secs(x: float) -> str:
     return "not reached" if x == float("inf") else f"{x:.1f} s"
 
 
-def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
+def table(launches: list[dict], gpu: str = "", side: str = "new", settings: dict | None = None) -> str:
     trials = {ev["trials"] for r in launches for ev in (r["eval_final"], r["eval_best"]) if ev}
     head = ["seed", "start (compile s)", "launch to 90 % (s)", "env steps at 90 %", "launch to end (s)",
             "learner (M env steps/s)", "in-training final A-W / W-A", "in-training best A-W / W-A (env steps)"]
@@ -181,8 +205,10 @@ def table(launches: list[dict], gpu: str = "", side: str = "new") -> str:
         lines.append("| " + " | ".join(cells) + " |")
     every_seed = side in ("new", "old")   # every_seed.sh's sides; recipe_end.sh's are the recipes
     recipe = "td3_lstm" if every_seed else side
+    apart = ", ".join(f"{k} = {v}" for k, v in (settings or {}).items())
     out = [f"# Every seed, every time: {len(launches)} launches of `python -m docrl_jax.train --config {recipe}`"
-           + (f", side {side}" if side == "old" else "") + (f" ({gpu})" if gpu else ""), "", *lines, ""]
+           + (f", side {side}" if side == "old" else "") + (f", with {apart}" if apart else "")
+           + (f" ({gpu})" if gpu else ""), "", *lines, ""]
     for kind, rows in (("warm", [r for r in launches if r["cold"] is False]),
                        ("cold", [r for r in launches if r["cold"]]), ("all", launches)):
         if not rows:
@@ -252,7 +278,11 @@ def main(argv=None) -> int:
         cards = [c for c in cards if not c.startswith("jax ")]   # nvidia-smi's lines, one per GPU
         gpu = f"{cards[0]} x{len(cards)}" if cards else ""
     sides = sorted({r["side"] for r in launches}, key=lambda x: (x != "new", x))
-    text = "\n".join(table([r for r in launches if r["side"] == side], gpu, side) for side in sides)
+    # every_seed.sh's two sides: each title names the settings (OLD_ARGS, NEW_ARGS) that set it apart
+    apart = {side: side_settings(launches, side, ({"new", "old"} - {side}).pop())
+             for side in sides if {"new", "old"} <= set(sides) and side in ("new", "old")}
+    text = "\n".join(table([r for r in launches if r["side"] == side], gpu, side, apart.get(side))
+                     for side in sides)
     text += "".join(paired(launches, "new", side) for side in sides if side != "new")
     print(text, end="")
     if args.out:

@@ -23,7 +23,8 @@ from docrl_jax.config.auto import resolve_auto
 from docrl_jax.config.checks import check_batch_size, max_batch_size, validate
 from docrl_jax.config.env import (TRAINING_ONLY_ENV, alongside_blocker, env_kwargs, evaluation_env_kwargs,
                                   nominal_env_kwargs, observation_size, pair_scenario, pairs_own_env)
-from docrl_jax.config.files import packaged_config_names, packaged_configs_dir, resolve_config_path, to_dict, to_yaml
+from docrl_jax.config.files import (differences, packaged_config_names, packaged_configs_dir, resolve_config_path,
+                                    to_dict, to_yaml)
 from docrl_jax.config.load import config_from_dict, load_config, parse_overrides
 from docrl_jax.config.sections import (AUTO_CRITIC_DTYPE, AUTO_ITERS_PER_CHUNK, AUTO_NUM_ENVS, AUTO_STEPS_PER_ENV,
                                        SECTIONS, AgentConfig, Config, EnvConfig, LevelsConfig, ReplayConfig,

@@ -99,6 +99,19 @@ def to_dict(c: Config) -> dict[str, Any]:
     return out
 
 
+def differences(a: Config, b: Config) -> dict[str, tuple]:
+    """{'section.key': (a's value, b's value)} where the two configs differ (what a resume may not change,
+    what sets two runs apart)."""
+    def flat(c):
+        out = {}
+        for key, value in to_dict(c).items():
+            items = value.items() if isinstance(value, dict) else [(None, value)]
+            out.update({(f"{key}.{k}" if k else key): v for k, v in items})
+        return out
+    fa, fb = flat(a), flat(b)
+    return {k: (fa.get(k), fb.get(k)) for k in sorted(fa.keys() | fb.keys()) if fa.get(k) != fb.get(k)}
+
+
 def to_yaml(c: Config) -> str:
     """The config as YAML (what a run directory's config.yaml holds); loads back to the same Config."""
     import yaml  # (as in compose)

@@ -24,7 +24,7 @@ from rich.progress import BarColumn, Progress, TextColumn
 from rich.text import Text
 
 from docrl_jax import checkpoint, memory, runs, sharding
-from docrl_jax.config import Config, env_kwargs, to_dict, to_yaml
+from docrl_jax.config import Config, differences, env_kwargs, to_yaml
 from docrl_jax.envs import make_params
 from docrl_jax.envs.huauv import scene_path
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
@@ -67,25 +67,13 @@ def check_resume_changes(run_dir: Path, config: Config, own: Config | None = Non
     """Refuses a resume whose `config` differs from the run's own (`own`, else read from `run_dir`) but in
     RESUMABLE keys: one line naming each key and what a resume may change."""
     own = runs.read_config(run_dir) if own is None else own
-    changed = [f"{key} ({was!r} -> {now!r})" for key, (was, now) in _differences(own, config).items()
+    changed = [f"{key} ({was!r} -> {now!r})" for key, (was, now) in differences(own, config).items()
                if key not in RESUMABLE]
     if changed:
         may = ", ".join(key for key in RESUMABLE if key != "name")
         raise ConfigError(f"a resume continues the run as it was trained and cannot change {', '.join(changed)}; "
                           f"it may change {may}. To train otherwise, start a new run: "
                           f"--config {run_dir / runs.CONFIG_FILE} --set ...")
-
-
-def _differences(a: Config, b: Config) -> dict[str, tuple]:
-    """{'section.key': (a's value, b's value)} where the two configs differ."""
-    def flat(c):
-        out = {}
-        for key, value in to_dict(c).items():
-            items = value.items() if isinstance(value, dict) else [(None, value)]
-            out.update({(f"{key}.{k}" if k else key): v for k, v in items})
-        return out
-    fa, fb = flat(a), flat(b)
-    return {k: (fa.get(k), fb.get(k)) for k in sorted(fa.keys() | fb.keys()) if fa.get(k) != fb.get(k)}
 
 
 class _Display:
