@@ -10,10 +10,10 @@
 #   python3 benchmarks/every_seed_table.py round_every_seed.tar        (here, the table)
 # gpu_lanes' train adds --set name=NAME (a label; no program or result depends on it) and --no-progress.
 # Old beside new on one host: SIDES="new old" (OLD_ARGS: the old side's overrides, e.g. --set
-# agent.policy_average_tau_start=0) gives each seed an old launch too, and NEW_ARGS the new side's (e.g. a
-# candidate default, --set agent.gamma=0.995, against the packaged one), stopped at 90 % (gpu_lanes'
+# agent.policy_average_tau_start=0) gives each seed an old launch too, stopped at 90 % (gpu_lanes'
 # `target`: a time to 90 % without an end or evaluations), named old_sSEED and run before or after the
-# new one in turn, so neither side always goes first. LANES sets the lanes (N lanes: seeds FIRST+lane, +N, ...);
+# new one in turn, so neither side always goes first. NEW_ARGS: the new side's own overrides (e.g. a
+# candidate default, --set agent.gamma=0.995, beside the packaged one on the old side). LANES sets the lanes (N lanes: seeds FIRST+lane, +N, ...);
 # FIRST (default 4701) the first of the ten seeds, so a later round can fly ten seeds no earlier round saw;
 # COUNT (default 10) how many, so a round a lost machine cut off can go on from the seed it had not begun;
 # WHICH (default "final best") the policies the evaluator flies (final alone where device time is short:
