@@ -40,7 +40,8 @@ from ab_summary import chunk_steps_per_s  # noqa: E402
 from time_to_success import read_rows, reached  # noqa: E402
 
 from docrl_jax import runs  # noqa: E402
-from docrl_jax.config import ConfigError, differences, load_config  # noqa: E402
+from docrl_jax.config import differences  # noqa: E402
+from docrl_jax.errors import RunDirError  # noqa: E402
 
 TARGET = 0.9
 # Issue 47's goal for every policy, by the evaluator: (scenario, success both ways at least).
@@ -109,10 +110,9 @@ def evaluator_success(eval_dir: Path) -> dict | None:
 
 def run_config(run_dir: Path):
     """The run's resolved config, or None where it is missing or no longer loads (an older round's keys)."""
-    path = run_dir / runs.CONFIG_FILE
     try:
-        return load_config(path) if path.is_file() else None
-    except ConfigError:
+        return runs.read_config(run_dir)
+    except RunDirError:
         return None
 
 
@@ -139,7 +139,8 @@ def launch(work: Path, run_dir: Path, ends: dict) -> dict:
         rate = chunk_steps_per_s(str(log)) if log.is_file() else None
     except statistics.StatisticsError:  # a run too short to have learning chunks
         rate = None
-    return {"name": name, "side": side, "seed": int(float(last["seed"])) if last else None, "config": run_config(run_dir),
+    return {"name": name, "side": side, "seed": int(float(last["seed"])) if last else None,
+            "config": run_config(run_dir),
             "cold": {"compiled": True, "loaded": False}.get(start.get("programs")),
             "compile_s": start.get("compile_s"), "first_chunk_s": start.get("launch_to_first_chunk_s"),
             "time_to_90_s": float(hit["wall_time_s"]) if hit else None,
@@ -279,8 +280,9 @@ def main(argv=None) -> int:
         gpu = f"{cards[0]} x{len(cards)}" if cards else ""
     sides = sorted({r["side"] for r in launches}, key=lambda x: (x != "new", x))
     # every_seed.sh's two sides: each title names the settings (OLD_ARGS, NEW_ARGS) that set it apart
-    apart = {side: side_settings(launches, side, ({"new", "old"} - {side}).pop())
-             for side in sides if {"new", "old"} <= set(sides) and side in ("new", "old")}
+    apart = {}
+    if {"new", "old"} <= set(sides):
+        apart = {"new": side_settings(launches, "new", "old"), "old": side_settings(launches, "old", "new")}
     text = "\n".join(table([r for r in launches if r["side"] == side], gpu, side, apart.get(side))
                      for side in sides)
     text += "".join(paired(launches, "new", side) for side in sides if side != "new")
