@@ -9,6 +9,10 @@ the default arrives in all 900, flyability's shortest routes (`--crowding 0`) co
 where the LIDAR fan sees 270 degrees). It reads the pose and the goal from `info` and the grids from its
 params, one plan per trial: run it with a rollout that maps params over trials (benchmarks/route_follower.py).
 `guided` steers a learned policy at the same aim instead (its goal floats point there).
+
+Without the tank's map, `own_map_follower` and `mapped` steer at the aim of the route planned on what the
+vehicle's own beams have shown it (docrl_jax/envs/belief.py): their carry holds the belief and the route field,
+updated every step from `info` (pose, attitude, ranges); nothing of the tank is known beforehand.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from docrl_jax.baselines.scripted import straight_line
-from docrl_jax.envs import flyability
+from docrl_jax.envs import belief, flyability
 from docrl_jax.envs import guidance
 from docrl_jax.envs.guidance import aim
 from docrl_jax.policy import Policy
@@ -28,7 +32,7 @@ _STRAIGHT = straight_line()
 def straight_plan(goal: jax.Array) -> dict:
     """Params of the control case: the straight-line distance to `goal` from every cell and no solid
     anywhere, as if the tank were empty (the follower then flies straight at the goal)."""
-    field = jnp.linalg.norm(flyability.cell_centres() - goal, axis=-1)
+    field = belief.initial_field(goal)
     return {"field": field, "gap": jnp.full(field.shape, jnp.inf, jnp.float32), "arrival": jnp.float32(0.0)}   # every line of sight is clear
 
 
@@ -36,9 +40,9 @@ def _init_carry():
     return jnp.zeros((), jnp.int32)
 
 
-def _act(params, carry, obs, info, key):
+def _steer(carry, obs, info, key, target):
+    """The scripted follower's action toward `target`."""
     position, goal = info["position"], info["goal"]
-    target = aim(params, position, goal)
     # straight_line slows within 0.5 m (horizontally) of its goal; a route point is no place to stop, so
     # one nearer than that (and not straight above or below) is pushed out to 0.5 m along the same bearing.
     rel = target - position
@@ -47,6 +51,10 @@ def _act(params, carry, obs, info, key):
     target = position + rel * jnp.array([stretch, stretch, 1.0])
     _, action = _STRAIGHT.act(_STRAIGHT.params, carry, obs, {**info, "goal": target}, key)
     return carry + 1, action
+
+
+def _act(params, carry, obs, info, key):
+    return _steer(carry, obs, info, key, aim(params, info["position"], info["goal"]))
 
 
 def _plans(params, env, states):
@@ -86,3 +94,56 @@ def guided(policy: Policy) -> Policy:
     return Policy(name=f"{policy.name} (route-guided)", params={"plan": None, "policy": policy.params},
                   init_carry=policy.init_carry, act=_GUIDED[id(policy.act)][0], source=policy.source,
                   which=policy.which, trial_params=_guided_plans, trial_axes=PLAN_AXES)
+
+
+def own_map_carry(inner=None) -> dict:
+    """The carry of a policy that maps as it flies: an empty belief, no field yet (made from the goal at the
+    first step), and the steered policy's own carry `inner`."""
+    return {"belief": belief.empty(), "field": jnp.zeros(flyability.GRID_SHAPE, jnp.float32),
+            "goal": jnp.full(3, jnp.nan, jnp.float32), "inner": inner}
+
+
+def own_map_plan(p, carry: dict, info: dict) -> tuple[dict, dict]:
+    """(the carry after this step's sensing, `guidance.aim`'s params planned on it): the belief takes the
+    step's beams, the field restarts from the straight line when the goal is new and is relaxed on the belief
+    (docrl_jax/envs/belief.py). `p`: the env's params (the beams' geometry, clearances, arrival)."""
+    goal = info["goal"]
+    ranges = jnp.concatenate([info["ranges"], info["vertical_ranges"]])
+    seen = belief.update(carry["belief"], p, info["position"], info["rot"], info["underwater"], ranges)
+    field = jnp.where(jnp.all(goal == carry["goal"]), carry["field"], belief.initial_field(goal))
+    plan = belief.plan(seen, field, goal, p, guidance.route_cost)
+    return {**carry, "belief": seen, "field": plan["field"], "goal": goal}, plan
+
+
+_OWN_MAP: dict = {}   # (kind, id(act), params) -> (act, init_carry, kept alive): one compile per policy and env
+
+
+def own_map_follower(p) -> Policy:
+    """The scripted follower (`route_follower`) on the route planned on its own beams (`own_map_plan`): it knows
+    nothing of the tank beforehand. `p`: the env's params."""
+    if ("follower", p) not in _OWN_MAP:
+        def act(params, carry, obs, info, key):
+            carry, plan = own_map_plan(p, carry, info)
+            inner, action = _steer(carry["inner"], obs, info, key, aim(plan, info["position"], info["goal"]))
+            return {**carry, "inner": inner}, action
+        _OWN_MAP[("follower", p)] = (act, lambda: own_map_carry(_init_carry()), None)
+    act, init, _ = _OWN_MAP[("follower", p)]
+    return Policy(name="own-map follower", params=None, init_carry=init, act=act)
+
+
+def mapped(policy: Policy, p) -> Policy:
+    """`policy` steered as `guided` steers it, at the aim of the route planned on its own beams (`own_map_plan`)
+    instead of the tank's: map-free. `p`: the params of the env it flies (its beams' geometry)."""
+    cache_key = ("policy", id(policy.act), id(policy.init_carry), p)
+    if cache_key not in _OWN_MAP:
+        def act(params, carry, obs, info, key):
+            carry, plan = own_map_plan(p, carry, info)
+            position = info["position"]
+            target = aim(plan, position, info["goal"], guidance.GUIDED_SIGHT_GAP, guidance.GUIDED_STEEP_REACH)
+            inner, action = policy.act(params, carry["inner"], guidance.guide(obs, position, info["yaw"], target),
+                                       info, key)
+            return {**carry, "inner": inner}, action
+        _OWN_MAP[cache_key] = (act, lambda: own_map_carry(policy.init_carry()), policy)
+    act, init, _ = _OWN_MAP[cache_key]
+    return Policy(name=f"{policy.name} (own-map)", params=policy.params, init_carry=init, act=act,
+                  source=policy.source, which=policy.which)

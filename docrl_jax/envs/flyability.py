@@ -142,12 +142,12 @@ def region_cells(layout: layouts.Layout, p: EnvParams, medium) -> jax.Array:
     return _region(layout, p, medium, _free(layout, p, obstacle_gap, floor_gap), obstacle_gap)
 
 
-def _relax(d: jax.Array, cost) -> jax.Array:
-    """One sweep: every cell takes the best of itself and its 26 neighbours plus the move's length (times
-    the cell's cost)."""
+def relax(d: jax.Array, cost, start=None) -> jax.Array:
+    """One sweep: every cell takes the best of `start` (default: itself) and its 26 neighbours plus the move's
+    length (times the cell's cost)."""
     nx, ny, nz = d.shape
     padded = jnp.pad(d, 1, constant_values=jnp.inf)
-    best = d
+    best = d if start is None else start
     for (i, j, k), w in zip(_OFFSETS, _WEIGHTS):
         best = jnp.minimum(best, padded[1 + i:1 + i + nx, 1 + j:1 + j + ny, 1 + k:1 + k + nz] + w * cost)
     return best
@@ -167,7 +167,7 @@ def distance_field(free: jax.Array, seeds: jax.Array, cost=None) -> jax.Array:
 
     def sweep(state):
         d, _, n = state
-        new = jnp.where(free, _relax(d, cost), inf)
+        new = jnp.where(free, relax(d, cost), inf)
         return new, jnp.any(new < d), n + 1
 
     def more(state):

@@ -63,8 +63,15 @@ def plan_cells(free: jax.Array, gap: jax.Array, p, goal: jax.Array, crowding: fl
     arrival = jnp.float32(p.arrival_distance)
     if crowding == 0:
         return {"field": flyability.distance_field(free, seeds), "gap": gap, "arrival": arrival}
+    return {"field": flyability.distance_field(free, seeds, route_cost(gap, p, crowding)), "gap": gap,
+            "arrival": arrival}
+
+
+def route_cost(gap: jax.Array, p, crowding: float = CROWDING) -> jax.Array:
+    """Cost per metre of a move leaving each cell (module doc): 1, plus `crowding` x how far the cell lies
+    inside SAFE_GAP of a solid (`gap`: its distance to the nearest one)."""
     inside = jnp.clip((SAFE_GAP - gap) / (SAFE_GAP - flyability.clearance(p)), 0.0, 1.0)
-    return {"field": flyability.distance_field(free, seeds, 1.0 + crowding * inside), "gap": gap, "arrival": arrival}
+    return 1.0 + crowding * inside
 
 
 _TRIAL_PLANS: dict = {}   # (id(env), crowding, batch) -> (jit of the plans, env): compiled once per env

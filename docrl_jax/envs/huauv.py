@@ -387,10 +387,11 @@ class HUAUVEnv:
     def _info(ranges, position, velocity, rot, goal, underwater, arrived, terminated, truncated, collision,
               out_of_bounds, step, goals_reached, nonfinite_action):
         # "ranges": the fan's; "vertical_ranges": every beam after it (`sensors.extra_directions`: up and
-        # down with vertical_beams, then the slant_beams rings), empty (0,) without them
+        # down with vertical_beams, then the slant_beams rings), empty (0,) without them; "rot": the body's
+        # attitude (3, 3), body to world, as an IMU gives it (a map from the beams needs their directions)
         return {
             "ranges": ranges[:sensors.NUM_BEAMS], "vertical_ranges": ranges[sensors.NUM_BEAMS:],
-            "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot),
+            "position": position, "velocity": velocity, "yaw": physics.yaw_of(rot), "rot": rot,
             "goal": goal, "distance": jnp.linalg.norm(goal - position), "underwater": underwater,
             "arrived": arrived, "terminated": terminated, "truncated": truncated, "collision": collision,
             "out_of_bounds": out_of_bounds, "step": step, "goals_reached": goals_reached,

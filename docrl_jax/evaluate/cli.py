@@ -55,17 +55,30 @@ def add_which_argument(p: argparse.ArgumentParser) -> None:
                         f"it) or best (each seed's best evaluated one); default the run's policy: {RUN_POLICY_RULE}")
 
 
+GUIDES = ("tank", "sensors")   # --guide's values: the route on the tank's own map, or on the vehicle's own beams
+
+
 def add_guide_argument(p: argparse.ArgumentParser) -> None:
     """--guide, as every command that flies a policy takes it (evaluate, robustness, render)."""
-    p.add_argument("--guide", action="store_true",
-                   help="steer the policy down each trial's route through its tank, which the command knows "
-                        "(docrl_jax/envs/guidance.py: its goal floats point at the route's aim): map-aided, not "
-                        "mapless; labels say 'guided'. Not for bba, which reads its goal from the env")
+    p.add_argument("--guide", nargs="?", const="tank", default=None, metavar="{tank,sensors}",
+                   help="steer the policy down a route (docrl_jax/envs/guidance.py: its goal floats point at the "
+                        "route's aim). 'tank' (alone: --guide) plans on each trial's tank, which the command knows: "
+                        "map-aided, labels say 'guided'. 'sensors' plans on the map the vehicle builds from its own "
+                        "beams as it flies (docrl_jax/envs/belief.py): no prior map, labels say 'own-map'. Not for "
+                        "bba, which reads its goal from the env")
 
 
 def check_guide(args: argparse.Namespace) -> None:
-    """--guide steers a learned policy through its observation; the BBA baseline does not read one."""
-    if getattr(args, "guide", False) and (args.policy or "").lower() == "bba":
+    """--guide names a known route source and steers a learned policy through its observation; the BBA baseline
+    does not read one."""
+    guide = getattr(args, "guide", None)
+    if guide is None:
+        return
+    if guide not in GUIDES:
+        from docrl_jax.schema import did_you_mean
+        raise UsageError(f"--guide {guide!r}: valid routes are {', '.join(GUIDES)} (tank: the tank's own map; "
+                         f"sensors: the map the vehicle builds from its beams){did_you_mean(guide, GUIDES)}")
+    if (args.policy or "").lower() == "bba":
         raise UsageError("--guide steers a learned policy through its observation's goal floats; bba reads its goal "
                          "from the env: drop --guide, or give --run RUN_DIR or a shipped --policy")
 

@@ -39,7 +39,7 @@ def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple
     policy = runs.load_policy(run, seed_index=seed_index, which=args.which)
     print(f"{Path(run).name}: {policy.source}", flush=True)
     name = config_name(run) if len(args.run) > 1 else Path(run).resolve().name
-    policy, label = policies.steered(policy, runs.policy_label(name, policy.which), args.guide)
+    policy, label = policies.steered(policy, runs.policy_label(name, policy.which), args.guide, env)
     return policy, args.label or label
 
 

@@ -238,7 +238,7 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
             own = any(t in cfg["tests"] for t in ("perturbations", "random_trips"))
             first_env = rollout.make_eval_env(cfg["scenarios"][0] if own else 0, steps, **host_kw)
             policy, _ = policies.policy_for(first_env, run, run_seed or 0, cfg["which"], cfg["bba_depth_phase"],
-                                           name=method.shipped, guide=cfg.get("guide", False))
+                                           name=method.shipped, guide=cfg.get("guide"))
             if policy.source:
                 report(f"{method.label}: {Path(run).name + ': ' if run else ''}{policy.source}")
             for scenario in cfg["scenarios"] if "perturbations" in cfg["tests"] else ():

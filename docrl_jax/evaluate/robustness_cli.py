@@ -219,7 +219,7 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
         m.label = label
     if args.guide and not labels:   # labels the command made say the methods fly guided
         for m in methods:
-            m.label = m.label and policies.guided_label(m.label)
+            m.label = m.label and policies.guided_label(m.label, args.guide)
     for m in methods:
         if m.label is None:
             raise UsageError(f"--run {' '.join(m.runs)}: the run directories hold different configs "

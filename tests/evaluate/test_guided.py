@@ -13,7 +13,7 @@ from docrl_jax.evaluate import policies
 
 
 def test_a_guided_policy_plans_per_trial_and_says_so():
-    policy, label = policies.policy_for(None, name="sac_mlp_generalist", guide=True)
+    policy, label = policies.policy_for(None, name="sac_mlp_generalist", guide="tank")
     plain, plain_label = policies.policy_for(None, name="sac_mlp_generalist")
     assert label == policies.guided_label(plain_label) != plain_label
     assert policy.trial_params is not None and plain.trial_params is None

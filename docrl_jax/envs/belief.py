@@ -1,0 +1,139 @@
+"""What the vehicle knows of its tank: an occupancy belief built from its own beams, and a route planned
+on it (no prior map). Pure JAX over fixed shapes: one env's arrays, vmap for a batch.
+
+The belief lives on flyability's grid (0.25 m cells, (39, 39, 37): the whole tank in 3-D), one int8 per
+cell: UNKNOWN (no beam has passed), FREE (a beam passed through) or OCCUPIED (a beam ended there). Each step
+`update` marks, along every beam the active sensor cast (its fan, then the beams after it: vertical, slanted),
+the cells the beam crossed before its reading as FREE and the cell of its end point as OCCUPIED, unless the
+reading is the sensor's maximum (nothing returned). The cells take the larger code: a solid once seen stays
+(the tank is static), and a beam never turns a seen solid free.
+
+What 20 beams see: the paper's fan lies in the body's x-y plane, so it maps one horizontal slice at the
+vehicle's depth; a ceiling above it, a floor below it or a window's sill are never seen (the cells stay
+UNKNOWN). `vertical_beams` (body +z, -z) and `slant_beams` (rings at +-`slant_elevation_deg`) see up and
+down; the recipes for tanks a person builds fly with both (`sac_mlp_tanks`).
+
+`plan` turns the belief into the params `guidance.aim` reads ({"field", "gap", "arrival"}), as `guidance.plan`
+does from the tank's own solids: `gap` is every cell's distance to the nearest OCCUPIED cell (exact up to
+`GAP_REACH`), a cell is passable when it is not OCCUPIED, keeps `flyability.clearance` from the seen solids and
+lies below the episode's top bound (an UNKNOWN cell keeps `UNKNOWN_GAP`), UNKNOWN cells are passable at
+`UNKNOWN_COST` extra per metre (the
+free-space assumption of D* Lite: plan on what is known, assume the unknown is free), and `field` is the
+route cost to the goal's arrival cells. The field is warm-started: each step runs `SWEEPS` relaxation sweeps
+from the last step's field (the first from the straight-line distance to the goal, a lower bound), so a
+newly seen wall raises the cells it cuts off within a few steps and the route bends round it, at a fixed
+cost per step.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from docrl_jax.envs import flyability, sensors
+from docrl_jax.envs.params import EnvParams
+
+UNKNOWN, FREE, OCCUPIED = 0, 1, 2
+BEAM_STEP = flyability.GRID_STEP / 2      # m between the points a beam marks (two per cell)
+REACH = float(np.hypot(np.hypot(9.5, 9.5), 9.0)) + 1.0   # m: the farthest a beam from inside the grid can cross it
+GAP_REACH = 5                              # cells: `gap` is exact up to 1.25 m (the guidance reads <= 1 m)
+UNKNOWN_COST = 0.5                         # extra route cost per metre through UNKNOWN cells
+UNKNOWN_GAP = 1.0                          # m: an UNKNOWN cell nearer a seen solid than this is not passable: beams
+#                                            leave pockets unseen in a surface they sweep (a slab under a hovering
+#                                            vehicle is hit by one beam), and a pocket is no opening
+SWEEPS = 4                                 # relaxation sweeps of the field per step
+
+_SAMPLES = int(np.ceil(REACH / BEAM_STEP))
+_GRID = np.asarray(flyability.GRID_SHAPE)
+
+
+def empty() -> jax.Array:
+    """int8 (X, Y, Z): a belief that knows nothing."""
+    return jnp.zeros(flyability.GRID_SHAPE, jnp.int8)
+
+
+def update(belief: jax.Array, p: EnvParams, position, rot, underwater, ranges) -> jax.Array:
+    """The belief after one sensing: `ranges` (20 + k,) as the env reports them (its fan, then the beams
+    after it: `info["ranges"]` then `info["vertical_ranges"]`), cast from `position` with the body's
+    rotation `rot` (3, 3) in the medium `underwater` selects (module doc)."""
+    dirs = sensors.beam_directions(p, rot, underwater)                       # (B, 3)
+    limit = sensors.max_range(p, underwater)
+    t = (jnp.arange(_SAMPLES, dtype=jnp.float32) + 0.5) * BEAM_STEP           # (S,)
+    points = position + dirs[:, None, :] * t[None, :, None]                  # (B, S, 3)
+    crossed = t[None, :] < (ranges[:, None] - 0.75 * flyability.GRID_STEP)   # short of the cell it ended in
+    idx, inside = flyability.nearest_cell(points)
+    codes = jnp.where(crossed & inside, FREE, UNKNOWN)
+    hit = ranges < 0.999 * limit
+    # An end point beyond the grid (a wall's face lies 0.15 m outside it) marks the grid's edge cell.
+    end_idx, _ = flyability.nearest_cell(position + dirs * ranges[:, None])
+    cells = jnp.concatenate([idx.reshape(-1, 3), end_idx])
+    codes = jnp.concatenate([codes.reshape(-1), jnp.where(hit, OCCUPIED, UNKNOWN)]).astype(jnp.int8)
+    return belief.at[cells[:, 0], cells[:, 1], cells[:, 2]].max(codes)
+
+
+def gaps(belief: jax.Array) -> jax.Array:
+    """float32 (X, Y, Z): distance (m) from every cell centre to the nearest OCCUPIED cell centre, exact up to
+    GAP_REACH cells and at least that beyond (a separable squared-distance transform over a window)."""
+    far = jnp.float32((2 * GAP_REACH * flyability.GRID_STEP) ** 2)
+    sq = jnp.where(belief == OCCUPIED, jnp.float32(0.0), far)
+    for axis in range(3):
+        padded = jnp.pad(sq, [(GAP_REACH, GAP_REACH) if a == axis else (0, 0) for a in range(3)],
+                         constant_values=far)
+        n = sq.shape[axis]
+        best = sq
+        for s in range(-GAP_REACH, GAP_REACH + 1):
+            shifted = jax.lax.slice_in_dim(padded, GAP_REACH + s, GAP_REACH + s + n, axis=axis)
+            best = jnp.minimum(best, shifted + jnp.float32((s * flyability.GRID_STEP) ** 2))
+        sq = best
+    return jnp.sqrt(sq)
+
+
+def passable(belief: jax.Array, gap: jax.Array, p: EnvParams) -> jax.Array:
+    """bool (X, Y, Z): cells a route may use on what is known (module doc)."""
+    z = flyability.cell_centres()[..., 2]
+    clear = jnp.where(belief == UNKNOWN, gap >= UNKNOWN_GAP, gap >= flyability.clearance(p))
+    return (belief != OCCUPIED) & clear & (z <= p.bounds[1])
+
+
+def initial_field(goal: jax.Array) -> jax.Array:
+    """float32 (X, Y, Z): the straight-line distance to `goal`, a lower bound of every route's cost."""
+    return jnp.linalg.norm(flyability.cell_centres() - goal, axis=-1)
+
+
+def relax(field: jax.Array, free: jax.Array, seeds: jax.Array, cost: jax.Array, sweeps: int = SWEEPS) -> jax.Array:
+    """`sweeps` Bellman sweeps of the route cost from `field`: a seed cell 0, a blocked cell inf, any other the
+    best of its 26 neighbours plus the move's length times its cost. A cell does not keep its own old value,
+    so a field that is too low where a route has closed rises to the true cost (by >= a cell a sweep)."""
+    inf = jnp.float32(jnp.inf)
+
+    def sweep(d, _):
+        best = flyability.relax(d, cost, jnp.full(d.shape, inf))
+        return jnp.where(free, jnp.where(seeds, jnp.float32(0.0), best), inf), None
+
+    return jax.lax.scan(sweep, field, None, length=sweeps)[0]
+
+
+def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, route_cost,
+         sweeps: int = SWEEPS) -> dict:
+    """`guidance.aim`'s params from the belief (module doc), the field relaxed `sweeps` times from `field`.
+    `route_cost(gap, p)` is the cost per metre of a known cell (guidance's dislike of cells near solids)."""
+    gap = gaps(belief)
+    free = passable(belief, gap, p)
+    seeds = flyability.goal_seeds(free, goal, p.arrival_distance)
+    cost = route_cost(gap, p) + UNKNOWN_COST * (belief == UNKNOWN)
+    return {"field": relax(field, free, seeds, cost, sweeps), "gap": gap,
+            "arrival": jnp.float32(p.arrival_distance)}
+
+
+def frontier(belief: jax.Array) -> jax.Array:
+    """bool (X, Y, Z): FREE cells with an UNKNOWN face neighbour (where exploring would learn more)."""
+    unknown = jnp.pad(belief == UNKNOWN, 1)
+    nx, ny, nz = belief.shape
+    near = jnp.zeros(belief.shape, bool)
+    for axis in range(3):
+        for s in (-1, 1):
+            start = [1, 1, 1]
+            start[axis] += s
+            near = near | unknown[start[0]:start[0] + nx, start[1]:start[1] + ny, start[2]:start[2] + nz]
+    return (belief == FREE) & near
