@@ -1,12 +1,12 @@
-"""The 10-seed table of benchmarks/rounds/every_seed.sh (issue 47) from the round's packed results; also the
+"""The 10-seed table of benchmarks/rounds/every_seed.sh from the job's packed results; also the
 launches of benchmarks/rounds/recipe_end.sh (named RECIPE_sI: one table per recipe).
 
     python3 benchmarks/every_seed_table.py round_every_seed.tar [--out every_seed.md]
     python3 benchmarks/every_seed_table.py DIR        (a folder holding pack/, or the pack folder itself)
 
-One table per side of the round (SIDES: sSEED is the new side, old_sSEED the old one, stopped at
+One table per side of the job (SIDES: sSEED is the new side, old_sSEED the old one, stopped at
 90 % without evaluations), its title naming the settings of the runs' config.yaml that set the two sides apart
-(NEW_ARGS, OLD_ARGS). Per launch (seed): cold or warm (startup.json: programs compiled or loaded from the round's shared
+(NEW_ARGS, OLD_ARGS). Per launch (seed): cold or warm (startup.json: programs compiled or loaded from the job's shared
 cache, and the seconds that took); launch to 90 % both ways on the in-training paper pairs (metrics.csv's
 wall_time_s, seconds after the process started, of the first evaluation with both directions at the
 target: benchmarks/time_to_success.py's `reached`) and the env steps there; launch to end (gpu_lanes'
@@ -14,7 +14,7 @@ target: benchmarks/time_to_success.py's `reached`) and the env steps there; laun
 (benchmarks/ab_summary.py's reading of the log); the in-training evaluation of the final policy (the
 last row) and of the best one (the checkpoint's record of the evaluation that picked it); the
 evaluator's success of the final and the best policy per scenario and direction. Then medians and
-the slowest, and how many finals and bests meet issue 47's goal: >= 95 % both ways in scenario 2 and
+the slowest, and how many finals and bests meet the run goal (docs/BENCHMARKS.md, "Targets"): >= 95 % both ways in scenario 2 and
 >= 90 % both ways in scenarios 1 and 3.
 
 The best policy is picked on, and its in-training score measured on, the in-training scenario-2 pair
@@ -44,16 +44,16 @@ from docrl_jax.config import differences  # noqa: E402
 from docrl_jax.errors import RunDirError  # noqa: E402
 
 TARGET = 0.9
-# Issue 47's goal for every policy, by the evaluator: (scenario, success both ways at least).
+# The run goal for every policy, by the evaluator: (scenario, success both ways at least).
 GOAL = ((2, 0.95), (1, 0.90), (3, 0.90))
 SCENARIO_COLUMNS = (1, 2, 3)
 DIRS = ("air_to_water", "water_to_air")
 
 
 def unpack(source: str, into: Path, scratch: Path | None = None) -> Path:
-    """The round's packs (the $OUT tar of gpu_lanes, a folder holding pack/ or pack/ itself) unpacked
+    """The job's packs (the $OUT tar of gpu_lanes, a folder holding pack/ or pack/ itself) unpacked
     into `into`: runs/NAME, eval/NAME, the logs and `times`. A tar is first extracted into `scratch`
-    (default into/tar; several rounds unpacked into one `into` need one each). Returns `into`."""
+    (default into/tar; several jobs unpacked into one `into` need one each). Returns `into`."""
     src = Path(source)
     if src.is_file():
         scratch = into / "tar" if scratch is None else scratch
@@ -109,7 +109,7 @@ def evaluator_success(eval_dir: Path) -> dict | None:
 
 
 def run_config(run_dir: Path):
-    """The run's resolved config, or None where it is missing or no longer loads (an older round's keys)."""
+    """The run's resolved config, or None where it is missing or no longer loads (an older version's keys)."""
     try:
         return runs.read_config(run_dir)
     except RunDirError:
@@ -129,7 +129,7 @@ def side_settings(launches: list[dict], side: str, other: str) -> dict:
 
 def launch(work: Path, run_dir: Path, ends: dict) -> dict:
     name = run_dir.name
-    side = name.rsplit("_", 1)[0] if "_" in name else "new"   # the round's names: sSEED, old_sSEED
+    side = name.rsplit("_", 1)[0] if "_" in name else "new"   # the job's names: sSEED, old_sSEED
     rows = read_rows(str(run_dir / "metrics.csv"))
     start = json.loads((run_dir / "startup.json").read_text()) if (run_dir / "startup.json").is_file() else {}
     hit = reached(rows, TARGET)
@@ -234,7 +234,7 @@ def table(launches: list[dict], gpu: str = "", side: str = "new", settings: dict
         out.append(f"- evaluator, {w} policies: {s2}/{len(done)} >= {bar[2]:.0%} both ways in scenario 2, "
                    f"{s13}/{len(done)} >= {bar[1]:.0%} / {bar[3]:.0%} both ways in scenarios 1 / 3, "
                    f"{both}/{len(done)} both ({len(launches) - len(done)} not evaluated)")
-    footer = f"Goal (issue 47): every final policy {goal}; " if every_seed else ""
+    footer = f"Run goal: every final policy {goal}; " if every_seed else ""
     if trials:
         footer += f"evaluator {', '.join(map(str, sorted(trials)))} trials per scenario and direction. "
     footer += ("Launch to 90 %: the in-training evaluation of the paper pairs (scenario 2), seconds after the process "
@@ -262,11 +262,11 @@ def paired(launches: list[dict], a: str, b: str) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("source", help="the round's tar (round_every_seed.tar), a folder holding pack/, or pack/")
+    ap.add_argument("source", help="the job's tar (round_every_seed.tar), a folder holding pack/, or pack/")
     ap.add_argument("--out", help="write the table here too (Markdown)")
     args = ap.parse_args(argv)
     if not os.path.exists(args.source):
-        ap.exit(2, f"every_seed_table.py: error: {args.source}: no such file or folder (give the round's tar "
+        ap.exit(2, f"every_seed_table.py: error: {args.source}: no such file or folder (give the job's tar "
                    "or a folder holding pack/)\n")
     with tempfile.TemporaryDirectory(prefix="every_seed_") as tmp:
         work = unpack(args.source, Path(tmp))

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Runs a round of training and evaluation launches on the GPUs of one host, one lane per GPU, and
+# Runs a job of training and evaluation launches on the GPUs of one host, one lane per GPU, and
 # brings back what has ended by a deadline, so a device call's time limit never loses a finished run.
 #   bash benchmarks/gpu_lanes.sh ROUND [DEADLINE_S]     (on the GPU machine, from the checkout's root)
-# ROUND is a bash file (benchmarks/rounds/*.sh) that sets LANES (e.g. "0 1 2 3"; lane N runs on GPU N mod
+# JOB is a bash file (benchmarks/rounds/*.sh) that sets LANES (e.g. "0 1 2 3"; lane N runs on GPU N mod
 # the host's GPUs, several lanes on one GPU sharing its memory) and defines
 # `lane N`, which calls, one after the other:
 #   train NAME LABEL TRAIN_ARGS...   python -m docrl_jax.train TRAIN_ARGS into runs/NAME, packed policy-only
@@ -11,12 +11,12 @@
 #   evaluate NAME LABEL RUN_DIRS... -- ROBUSTNESS_ARGS...   python -m docrl_jax.robustness into eval/NAME
 #   evaluator NAME LABEL RUN_DIRS... -- EVALUATE_ARGS...    python -m docrl_jax.evaluate (the paper's protocol)
 #     into eval/NAME, without figures; packed without the trajectories (.npz) and with the training log
-#     of each run evaluated; its compiled trials are kept in JAX's cache of the round (eval_cache)
+#     of each run evaluated; its compiled trials are kept in JAX's cache of the job (eval_cache)
 # The first call installs the carried wheels (WHEELS, default .whl; with the tracked tree grown past ~30 MB,
 # carry .whl_gpu from benchmarks/slim_wheels.py instead: the carry limit is 64 MiB), copies the code aside and starts every lane in its
 # own process session; each later call only waits. Call the later ones with --wait first
 # (`bash benchmarks/gpu_lanes.sh --wait ROUND [DEADLINE_S]`): where the machine went back between calls and
-# this one is fresh, --wait stops at once with one line, where a plain call would start the round again from
+# this one is fresh, --wait stops at once with one line, where a plain call would start the job again from
 # its first seed on device time (start it again with FIRST/COUNT at the first seed not yet packed).
 # Every call waits up to DEADLINE_S (default 540),
 # prints the lanes' times, the logs' last lines, the robustness tables and the evaluator's successes, and

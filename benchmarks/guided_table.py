@@ -1,15 +1,15 @@
-"""The table of benchmarks/rounds/guided.sh (issue 45's goals, route-guided and mapless) from the round's
+"""The table of benchmarks/rounds/guided.sh (the guided goals of docs/LEVELS.md, route-guided and mapless) from the job's
 packed results.
 
     python3 benchmarks/guided_table.py round_guided.tar [--out summary.md]
     python3 benchmarks/guided_table.py DIR        (a folder holding pack/, or the pack folder itself)
 
 Rows: each goal's test, success % A-W / W-A per seed of the guided policy, their median, the mapless
-median of the same seeds on the same trials (where the round flew it) and the goal. The robustness
+median of the same seeds on the same trials (where the job flew it) and the goal. The robustness
 benchmark's rows (robustness.csv of each evaluation) are read with `robustness_report.cell_rates` (each
 seed's rate averaged over the scenarios, then the median over seeds); the paper's pairs are the
 evaluator's (results.csv: the lowest of scenarios 1-3 per direction); the goal perturbations are the lowest
-of the issue's five settings, each averaged over scenarios 1-3.
+of the goals' five settings, each averaged over scenarios 1-3.
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ def table(bench: list[dict], pairs: list[dict]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("source", help="the round's tar (round_guided.tar), or a folder holding pack/")
+    ap.add_argument("source", help="the job's tar (round_guided.tar), or a folder holding pack/")
     ap.add_argument("--out", help="write the table here too")
     args = ap.parse_args()
     source = Path(args.source)

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The learner measurements of docs/BENCHMARKS.md ("Learner recipe"), one job per GPU, side by side:
+# The learner measurements of docs/BENCHMARKS.md ("Why the defaults are what they are"), one job per GPU, side by side:
 #   GPU 0: trainer throughput at 4,096 envs: the code before the learner rework (checked out into
 #          .old/, `git archive d036a67 docrl_jax configs assets benchmarks | tar -x -C .old`) with
 #          its td3_lstm recipe, then this code with td3_lstm_paper (today's recipe), td3_lstm (the new

@@ -1,14 +1,14 @@
-"""Per seed and per side, the final and best policies of benchmarks/rounds/seed_batches.sh (issue 47),
-from one or more rounds' packed results.
+"""Per seed and per side, the final and best policies of benchmarks/rounds/seed_batches.sh,
+from one or more jobs' packed results.
 
     python3 benchmarks/seed_batches_table.py round_seed_batches.tar [MORE.tar or DIR ...] [--out table.md]
 
-A round's launches are batches: `train.num_seeds` seeds vmapped in one launch, named SIDE_sFIRSTSEED, and
+A job's launches are batches: `train.num_seeds` seeds vmapped in one launch, named SIDE_sFIRSTSEED, and
 the evaluator's results of their final and best policies (eval/SIDE_sFIRSTSEED_{final,best}, one row per
 seed index). Per seed: env steps to 90 % both ways on the in-training paper pairs, the lowest W-A of the
-in-training evaluations over the run's second half (the late slide issue 47 names), which evaluation
+in-training evaluations over the run's second half (the late slide the run goal guards against), which evaluation
 today's best-policy rule picks from metrics.csv (the runs' own `best` was picked by the rule of their day),
-and the evaluator's success per scenario and direction. Then per side how many final and best policies meet issue 47's goal.
+and the evaluator's success per scenario and direction. Then per side how many final and best policies meet the run goal (docs/BENCHMARKS.md, "Targets").
 Time to 90 % in seconds is not this table's figure: seeds sharing a GPU run slower than a launch of one.
 """
 
@@ -103,22 +103,22 @@ def table(rows: list[dict]) -> str:
                      f"**{both}/{len(done)} meet the goal**")
         summary.append(text)
     goal = "; ".join(f">= {b:.0%} both ways in scenario {s}" for s, b in GOAL)
-    return "\n".join([*lines, "", *summary, "", f"Goal (issue 47), per policy by the evaluator: {goal}. "
+    return "\n".join([*lines, "", *summary, "", f"Run goal, per policy by the evaluator: {goal}. "
                        "'–': not evaluated."]) + "\n"
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("sources", nargs="+", help="rounds' tars (round_seed_batches.tar), folders holding pack/, or pack/")
+    ap.add_argument("sources", nargs="+", help="jobs' tars (round_seed_batches.tar), folders holding pack/, or pack/")
     ap.add_argument("--out", help="write the table here too (Markdown)")
     args = ap.parse_args(argv)
     for source in args.sources:
         if not os.path.exists(source):
-            ap.exit(2, f"seed_batches_table.py: error: {source}: no such file or folder (give a round's tar or a "
+            ap.exit(2, f"seed_batches_table.py: error: {source}: no such file or folder (give a job's tar or a "
                        "folder holding pack/)\n")
     rows = []
-    # All sources unpack into one folder: an evaluation packed apart from its round (e.g. one run on
-    # another machine) finds its launch. Launch names differ between rounds (their sides' names).
+    # All sources unpack into one folder: an evaluation packed apart from its job (e.g. one run on
+    # another machine) finds its launch. Launch names differ between jobs (their sides' names).
     with tempfile.TemporaryDirectory(prefix="seed_batches_") as tmp:
         for i, source in enumerate(args.sources):
             work = unpack(source, Path(tmp) / "work", Path(tmp) / f"source{i}")

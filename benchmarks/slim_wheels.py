@@ -3,7 +3,7 @@ whose carried tree (tracked files and the wheels) must stay under 64 MiB: mujoco
 `mujoco/experimental` and the Filament renderer (`mujoco/_render_filament*`), mujoco-mjx's wheel without its
 test data (`mujoco/mjx/test_data`, 6.5 MiB), which neither training nor evaluation imports (rendering uses
 EGL); every other wheel copied as it is, but with --without-render
-those only rendering needs (pyopengl, glfw: 3.3 MiB), for a round that draws nothing when the tree has
+those only rendering needs (pyopengl, glfw: 3.3 MiB), for a job that draws nothing when the tree has
 grown. pip installs the slimmed wheel with --no-deps as the device README says (its RECORD still names
 the dropped files; pip does not check them).
 

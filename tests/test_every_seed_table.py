@@ -1,4 +1,4 @@
-"""benchmarks/every_seed_table.py: a round's two sides are told apart by the settings their runs' configs
+"""benchmarks/every_seed_table.py: a job's two sides are told apart by the settings their runs' configs
 differ in, and by nothing that differs between the launches of one side (the seed, the run's name)."""
 
 import os

@@ -1,4 +1,4 @@
-# The policy average's end rate (issue 47): does a slower end (agent.policy_average_tau 0.0003 instead of
+# The policy average's end rate: does a slower end (agent.policy_average_tau 0.0003 instead of
 # the default 0.001; both fall from policy_average_tau_start 0.01) remove the late slides of the trained
 # scenario's W-A score, and what do its final policies fly in scenarios 1-3?
 #   B_ARGS="--set agent.policy_average_tau=0.0003" bash benchmarks/gpu_lanes.sh benchmarks/rounds/average_end.sh 540

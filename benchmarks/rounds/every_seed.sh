@@ -1,8 +1,8 @@
-# Every seed, every time (issue 47): the packaged default as a user launches it, ten times, on seeds
+# Every seed, every time: the packaged default as a user launches it, ten times, on seeds
 # nobody tuned on (4701-4710), each its own launch of the README's command with only its seed and run
 # directory set, one launch per GPU at a time on a 4-GPU host (lane N: seeds 4701+N, 4705+N, 4709+N
 # up to 4710, one after the other: 3, 3, 2, 2). Every launch shares one persistent compilation cache,
-# empty when the round starts, so each lane's first launch (4701-4704, the four at once) compiles and
+# empty when the job starts, so each lane's first launch (4701-4704, the four at once) compiles and
 # the later ones load (startup.json's `programs` says which each did). After each training, the
 # evaluator (100 trials, scenarios 1-3) flies the run's final policy and its best one (the in-training
 # evaluation's pick, train.track_best_policy) on its own trials.
@@ -14,11 +14,11 @@
 # `target`: a time to 90 % without an end or evaluations), named old_sSEED and run before or after the
 # new one in turn, so neither side always goes first. NEW_ARGS: the new side's own overrides (e.g. a
 # candidate default, --set agent.gamma=0.995, beside the packaged one on the old side). LANES sets the lanes (N lanes: seeds FIRST+lane, +N, ...);
-# FIRST (default 4701) the first of the ten seeds, so a later round can fly ten seeds no earlier round saw;
-# COUNT (default 10) how many, so a round a lost machine cut off can go on from the seed it had not begun;
+# FIRST (default 4701) the first of the ten seeds, so a later job can fly ten seeds no earlier job saw;
+# COUNT (default 10) how many, so a job a lost machine cut off can go on from the seed it had not begun;
 # WHICH (default "final best") the policies the evaluator flies (final alone where device time is short:
 # a checkpoint's metadata says whether the run's best evaluation was its last).
-# A CPU rehearsal shortens it: EXTRA (more train arguments, empty in the round), TRIALS, LANES.
+# A CPU rehearsal shortens it: EXTRA (more train arguments, empty in the job), TRIALS, LANES.
 LANES=${LANES:-"0 1 2 3"}
 export DOCRL_JAX_COMPILE_CACHE=$R/cache
 EVAL="--trials ${TRIALS:-100} --scenarios 1,2,3"

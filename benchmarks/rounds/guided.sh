@@ -1,10 +1,11 @@
-# Route guidance in the product (issue 45): `sac_mlp_tanks` (the shipped seed and its two siblings, final
+# Route guidance in the product: `sac_mlp_tanks` (the shipped seed and its two siblings, final
 # policies of benchmarks/results/h100x4/tanks_memory's `runs/route`, not retrained) flown with --guide by
-# the commands a user runs, on every test the issue's goals name: the gallery and the held-out structured
+# the commands a user runs, on every test the guided goals name (docs/LEVELS.md): the gallery and the held-out structured
 # tanks, the 1,000 held-out procedural layouts, random trips in scenarios 1-3, the goal perturbations
 # (scenarios 1-3) and the paper's pairs; lane 3 flies the same seeds unguided on the same trials.
 #   bash benchmarks/gpu_lanes.sh benchmarks/rounds/guided.sh
-# Unpack runs/route of benchmarks/results/h100x4/tanks_memory/raw.tar.gz into .jobs/old_runs/runs first.
+# Unpack runs/route of benchmarks/results/h100x4/tanks_memory/raw.tar.gz into .jobs/old_runs/runs first
+# (the archive is in git history: docs/results-archive.md has the command that brings it back).
 LANES=${LANES:-"0 1 2 3"}   # LANES="0 1 2": the guided lanes only
 RUN=$R/old_runs/runs/route
 TANKS="--tests structured,tanks --trials 350 --layouts 1000"

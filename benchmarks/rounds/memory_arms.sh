@@ -1,9 +1,9 @@
-# What memory buys in tanks a person builds (issue 45, the memory table), and the recipe's launch to end
+# What memory buys in tanks a person builds (the memory table of docs/LEVELS.md), and the recipe's launch to end
 # alone on its GPU: every arm is `sac_mlp_tanks` as packaged (route reward 2) with a memory change, each
 # launch 3 vmapped seeds (0-2) at the recipe's 50 M env steps, then evaluated on its GPU, mapless, on the
 # held-out structured tanks and the gallery. Lane 0 trains the recipe itself, alone on GPU 0, for its
 # launch-to-end time; lanes 2 and 6 share GPU 2, the others are alone. After training, lanes 0, 1 and 3
-# fly one seed each of `sac_mlp_generalist` (seeds 10-12 of its confirmation round) route-guided on the
+# fly one seed each of `sac_mlp_generalist` (seeds 10-12 of its confirmation runs) route-guided on the
 # same tanks.
 #   bash benchmarks/gpu_lanes.sh benchmarks/rounds/memory_arms.sh            (PART=1: every lane)
 #   PART=2 bash benchmarks/gpu_lanes.sh benchmarks/rounds/memory_arms.sh     (the lanes a lost machine cut off)
@@ -11,7 +11,8 @@
 # (lanes 0 and 3) were packed; it evaluates lane 3's runs (unpacked into .jobs/old_runs/runs/stack4), reruns
 # lanes 1 and 6 alone on their GPUs, and the LSTM whose critics see its carry (which had not learnt by
 # 20 M env steps, train success 0.01) to 20 M env steps only, for its learning curve.
-# Unpack runs/sac_mlp_gen_s10 of benchmarks/results/h200/generalist_confirm/raw.tar.gz into .jobs/old_runs.
+# Unpack runs/sac_mlp_gen_s10 of benchmarks/results/h200/generalist_confirm/raw.tar.gz into .jobs/old_runs
+# (in git history: docs/results-archive.md has the command that brings it back).
 PART=${PART:-1}
 [ $PART = 1 ] && LANES=${LANES:-"0 1 2 3 6"} || LANES=${LANES:-"0 1 2 3"}
 SEEDS="--set train.num_seeds=3 --set train.seed=0"

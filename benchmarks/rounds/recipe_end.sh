@@ -1,4 +1,4 @@
-# Launch to end of packaged recipes (issue 47: <= 3 minutes warm for the generalists), as a user runs them:
+# Launch to end of packaged recipes (the target: <= 3 minutes warm for the generalists), as a user runs them:
 # the README's command with only its seed and run directory set, LAUNCHES launches one after the other on
 # one GPU, sharing one compilation cache that is empty at the start, so the first launch compiles and the
 # later ones load. CONFIG is one recipe, or several separated by spaces: lane N runs the N-th on GPU N.

@@ -5,9 +5,10 @@
 # recipe's 50 M env steps; each evaluated on its GPU on the held-out structured tanks and the gallery (the
 # two packaged recipes also on the held-out procedural layouts, random trips and the paper pairs).
 #   bash benchmarks/gpu_lanes.sh benchmarks/rounds/tanks_memory.sh
-# The generalists' policies come from their own round: unpack runs/sac_mlp_gen_s10 and runs/gen_s13 of
-# benchmarks/results/h200/generalist_confirm/raw.tar.gz into .jobs/old_runs; OLD=0 leaves them out.
-# Since this round, sac_mlp_tanks has route_reward 2 (the arm `route`): the other arms set it to 0.
+# The generalists' policies come from their own runs: unpack runs/sac_mlp_gen_s10 and runs/gen_s13 of
+# benchmarks/results/h200/generalist_confirm/raw.tar.gz (in git history: docs/results-archive.md) into
+# .jobs/old_runs; OLD=0 leaves them out.
+# Since this comparison, sac_mlp_tanks has route_reward 2 (the arm `route`): the other arms set it to 0.
 LANES="0 1 2 3 4 5 6 7"
 SEEDS="--set train.num_seeds=3 --set train.seed=0"
 NOROUTE="--set levels.route_reward=0.0"

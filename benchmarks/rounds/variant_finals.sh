@@ -1,6 +1,6 @@
-# A variant of the default against the default's final policies of the same seeds (issue 47): seeds
+# A variant of the default against the default's final policies of the same seeds: seeds
 # FIRST.. (default 4911, those of benchmarks/results/h200/every_seed_more, whose raw.tar.gz holds the
-# default's runs), COUNT of them (default 3), one launch at a time of `td3_lstm` with ARGS (train
+# default's runs; docs/results-archive.md has the command that puts that folder back first), COUNT of them (default 3), one launch at a time of `td3_lstm` with ARGS (train
 # overrides), each flown by the evaluator (scenarios 1-3, its final policy); then the robustness
 # benchmark's random trips in scenario 3 (300 per direction) for the variant's and the default's finals.
 #   WHEELS=.whl_min ARGS="--set ..." NAME=b LABEL="box risers" FIRST=4911 COUNT=3 \
