@@ -24,6 +24,7 @@ from typing import Any, Sequence
 import yaml
 
 from docrl_jax import pretrained
+from docrl_jax.arguments import OneLineParser, UsageError, prog
 from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax.evaluate import rollout, tank_sets
 from docrl_jax.evaluate.run_dirs import check_run_dir, config_name, run_num_seeds
@@ -33,18 +34,6 @@ from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, SCENARIOS
 # The built-in policies that need no run directory and fly in every command with --policy. The
 # robustness benchmark (robustness_cli) reads this name and flies the baselines alone.
 POLICIES = pretrained.BASELINES
-
-
-class UsageError(ValueError):
-    """A bad command line; the message lists the valid choices."""
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, `PROG: error: MESSAGE`, exit status 2, without the
-    usage block (the message names the valid choices; --help shows the rest)."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def add_which_argument(p: argparse.ArgumentParser) -> None:
@@ -151,8 +140,7 @@ def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARI
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(prog="python -m docrl_jax.evaluate", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog=prog("evaluate"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group()
     src.add_argument("--run", metavar="RUN_DIR", nargs="+",
                      help="a trainer run directory (config.yaml + checkpoints); several run directories of one "

@@ -11,13 +11,13 @@ as in the paper (DoCRL-D, DoCRL-S, Sto., Det., BBA, then any other method).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 from pathlib import Path
 from typing import Sequence
 
+from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.evaluate import paper_results
 from docrl_jax.evaluate.protocol import DIRECTIONS
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, plus_minus
@@ -105,7 +105,7 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m docrl_jax.compare", description=__doc__.split("\n\n")[0])
+    ap = OneLineParser(prog=prog("compare"), description=__doc__.split("\n\n")[0])
     ap.add_argument("evals", nargs="+", help="evaluation output directories (or their results.json)")
     ap.add_argument("--out", help="write the Markdown here (default: print only)")
     args = ap.parse_args(argv)

@@ -25,6 +25,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Sequence
 
+from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax import pretrained, runs
 from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
@@ -67,8 +68,7 @@ def parse_perturbations(text: str) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.OneLineParser(prog="python -m docrl_jax.robustness", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog=prog("robustness"), description=__doc__.split("\n\n")[0])
     p.add_argument("--run", metavar="RUN_DIR", nargs="+", action="append",
                    help="a trainer run directory, or several of one config (separate launches: the method's seeds); "
                         "give --run again for another method beside it")

@@ -182,9 +182,9 @@ def parse_direction(text: str) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.envs.rendering import CAMERAS
-    from docrl_jax.evaluate.cli import OneLineParser, add_guide_argument, add_which_argument
-    p = OneLineParser(prog="python -m docrl_jax.render", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    from docrl_jax.arguments import OneLineParser, prog
+    from docrl_jax.evaluate.cli import add_guide_argument, add_which_argument
+    p = OneLineParser(prog=prog("render"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group()
     src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory: its policy (--which)")
     src.add_argument("--policy", metavar="NAME",

@@ -17,16 +17,13 @@ import sys
 from typing import Sequence
 
 from docrl_jax import pretrained
+from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.errors import ExportError, RunDirError, os_error_line
 from docrl_jax.export.artefacts import DEFAULT_OPSET, FORMATS
 
-PROG = "python -m docrl_jax.export"
-
-
 def build_parser() -> argparse.ArgumentParser:
-    from docrl_jax.evaluate.cli import OneLineParser, add_which_argument
-    p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0],
-                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    from docrl_jax.evaluate.cli import add_which_argument
+    p = OneLineParser(prog=prog("export"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory (config.yaml + checkpoints)")
     src.add_argument("--policy", metavar="NAME",
@@ -55,7 +52,7 @@ def _shipped(name: str) -> str:
 
 
 def _fail(message: str) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
+    print(f"{prog('export')}: error: {message}", file=sys.stderr)
     return 2
 
 

@@ -26,18 +26,16 @@ import os
 import time
 from pathlib import Path
 
-from docrl_jax import sharding
+from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.config import Config, env_kwargs, load_config, packaged_config_names, parse_overrides
 from docrl_jax.errors import ConfigError, RunDirError
-from docrl_jax.train import program_store
-from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
-from docrl_jax.train.program_store import enable_compile_cache
+from docrl_jax.train.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
 
 __all__ = ["EXIT_CONFIG", "EXIT_INTERRUPTED", "EXIT_NONFINITE", "EXIT_OK", "build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m docrl_jax.train", description=__doc__.split("\n\n")[0])
+    p = OneLineParser(prog=prog("train"), description=__doc__.split("\n\n")[0])
     p.add_argument("--config", help=f"packaged config name ({', '.join(packaged_config_names())}) or a YAML path")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one config value (YAML scalar); repeatable")
@@ -78,6 +76,9 @@ def process_start_time() -> float:
 def main(argv: list[str] | None = None) -> int:
     launch = process_start_time()
     args = build_parser().parse_args(argv)
+    # JAX with the device runtime (seconds): after the command line, so --help and its errors come at once
+    from docrl_jax import sharding
+    from docrl_jax.train import program_store
     console = make_console()
     notes: list[str] = []
     try:
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise RunDirError("a multi-process run needs --run-dir: one directory every process can reach "
                                   "(a shared file system when the processes are on several hosts)")
         config, run_dir = _resolve(args, notes)
-        cache = enable_compile_cache(args.compile_cache)
+        cache = program_store.enable_compile_cache(args.compile_cache)
         if not distributed:  # (several processes have no program store)
             program_store.prefetch(config)  # the stored programs load while the imports below run
         check_tank(config)

@@ -55,8 +55,8 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, HParams, hparams_neutral
 from docrl_jax.config import Config, field_docs, load_config, parse_overrides, to_yaml, validate
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import metrics
-from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
-                                  exit_process, make_console, run_chunks, schedule)
+from docrl_jax.train.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, exit_process, make_console
+from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks, schedule
 from docrl_jax.train.program_store import enable_compile_cache
 from docrl_jax.train.programs import building_note, compile_programs, still_compiling_line
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
@@ -294,7 +294,8 @@ def _run_group(group: Group, grid: dict, run_dir: Path, console, interrupt: Inte
 
 # ------------------------------------------------------------------------------------ command line
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m docrl_jax.sweep", description=__doc__.split("\n\n")[0])
+    from docrl_jax.arguments import OneLineParser, prog
+    p = OneLineParser(prog=prog("sweep"), description=__doc__.split("\n\n")[0])
     p.add_argument("--config", help="packaged config name or a YAML path (the base of every combination)")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one base config value (YAML scalar); repeatable")

@@ -1,0 +1,60 @@
+"""What every command line of the package shares: the one-line parser errors (`OneLineParser`,
+`UsageError`), the program name a command shows (`prog`), and the checks of file arguments (an
+--out to write, a --tank file to read), so that each problem reads the same in every command.
+
+Light on purpose (the standard library only): a command builds its parser and answers --help before
+it imports JAX, MuJoCo or Flax.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+class UsageError(ValueError):
+    """A bad command line; the message lists the valid choices."""
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """argparse's help, its descriptions kept as written, its argument help wrapped at spaces only: the
+    default also breaks at hyphens and inside long words, which cuts names such as
+    JAX_COORDINATOR_ADDRESS/JAX_NUM_PROCESSES or a path in two."""
+
+    def _split_lines(self, text, width):
+        import textwrap
+        text = self._whitespace_matcher.sub(" ", text).strip()
+        return textwrap.wrap(text, width, break_on_hyphens=False, break_long_words=False)
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, `PROG: error: MESSAGE`, exit status 2, without the
+    usage block (the message names the valid choices; --help shows the rest)."""
+
+    def __init__(self, *args, formatter_class=HelpFormatter, **kwargs):
+        super().__init__(*args, formatter_class=formatter_class, **kwargs)
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def launcher() -> str | None:
+    """How this process was started when through the package's one command line: 'docrl' (the console
+    script) or 'python -m docrl_jax'; None for a command's own module (`python -m docrl_jax.evaluate`)
+    or a library call."""
+    first = Path(sys.argv[0]) if sys.argv and sys.argv[0] else None
+    if first is None:
+        return None
+    if first.stem == "docrl":
+        return "docrl"
+    if first.name == "__main__.py" and first.parent.name == "docrl_jax":
+        return "python -m docrl_jax"
+    return None
+
+
+def prog(command: str) -> str:
+    """The program name `command`'s help and errors show: as the user typed it ('docrl evaluate',
+    'python -m docrl_jax evaluate', 'python -m docrl_jax.evaluate')."""
+    top = launcher()
+    return f"{top} {command}" if top else f"python -m docrl_jax.{command}"
