@@ -32,7 +32,7 @@ COMMANDS = {
     "export": Command("docrl_jax.export.cli", "a trained actor as ONNX, StableHLO and NumPy artefacts"),
     "robustness": Command("docrl_jax.evaluate.robustness_cli", "policies beyond the protocol: perturbations, "
                                                               "random trips, held-out tanks"),
-    "sweep": Command("docrl_jax.train.sweep", "a hyperparameter grid x seeds, with as few programs as it allows"),
+    "sweep": Command("docrl_jax.train.sweep_cli", "a hyperparameter grid x seeds, with as few programs as it allows"),
     "compare": Command("docrl_jax.evaluate.compare", "several evaluations beside the paper's Table I"),
     "tanks": Command("docrl_jax.envs.tanks_cli", "the packaged tanks; check tank files"),
 }

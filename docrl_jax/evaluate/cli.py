@@ -26,8 +26,6 @@ import yaml
 from docrl_jax import pretrained
 from docrl_jax.arguments import OneLineParser, UsageError, prog
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import rollout, tank_sets
-from docrl_jax.evaluate.run_dirs import check_run_dir, config_name, run_num_seeds
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, SCENARIOS
 
@@ -185,6 +183,8 @@ def build_parser() -> argparse.ArgumentParser:
 def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     """Checks the command line before anything is compiled; raises UsageError naming valid choices."""
     from docrl_jax.baselines.bba import DEPTH_PHASES
+    from docrl_jax.evaluate import rollout, tank_sets
+    from docrl_jax.evaluate.run_dirs import check_run_dir, config_name, run_num_seeds
     if args.run is None and args.policy is None and not args.curves:
         raise UsageError("nothing to do: give --run RUN_DIR or --policy NAME "
                          f"(valid policies: {', '.join(pretrained.POLICY_NAMES)}), and/or --curves RUN_DIR ...")

@@ -104,10 +104,15 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
     return "\n".join(out)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> OneLineParser:
     ap = OneLineParser(prog=prog("compare"), description=__doc__.split("\n\n")[0])
     ap.add_argument("evals", nargs="+", help="evaluation output directories (or their results.json)")
     ap.add_argument("--out", help="write the Markdown here (default: print only)")
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = build_parser()
     args = ap.parse_args(argv)
     try:
         aggs = [a for e in args.evals for a in load_eval(e)]

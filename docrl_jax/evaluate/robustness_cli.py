@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax import pretrained, runs
+from docrl_jax import pretrained
 from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
@@ -182,6 +182,7 @@ def _check_settings(cfg: dict, max_steps: int) -> None:
 
 def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
     """The methods of the command line in order (each --run group, then --policy), labelled."""
+    from docrl_jax import runs
     from docrl_jax.baselines import bba
     methods = []
     for group in args.run or []:
@@ -234,6 +235,7 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
 def group_policy(group: list[str], which: str | None) -> str:
     """The policy ("final" or "best") that --which loads from every run directory of one --run: the same in
     each, or a UsageError (one method's seeds are all final or all best policies)."""
+    from docrl_jax import runs
     kept = {run: runs.checkpoint_policy(run, which) for run in group}
     if len(set(kept.values())) > 1:
         raise UsageError(f"--run {' '.join(group)}: the runs keep different policies ("

@@ -181,7 +181,7 @@ def parse_direction(text: str) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from docrl_jax.envs.rendering import CAMERAS
+    from docrl_jax.envs.render_tracks import CAMERAS
     from docrl_jax.arguments import OneLineParser, prog
     from docrl_jax.evaluate.cli import add_guide_argument, add_which_argument
     p = OneLineParser(prog=prog("render"), description=__doc__.split("\n\n")[0])
@@ -310,13 +310,13 @@ def import_mujoco() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
     try:
         import_mujoco()
     except RenderError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    parser = build_parser()
-    args = parser.parse_args(argv)
     try:
         cfg = validate_args(args)
     except (UsageError, RunDirError, pretrained.UnknownPolicy, TankSetError) as e:
