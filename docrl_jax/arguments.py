@@ -1,6 +1,7 @@
 """What every command line of the package shares: the one-line parser errors (`OneLineParser`,
-`UsageError`), the program name a command shows (`prog`), and the checks of file arguments (an
---out to write, a --tank file to read), so that each problem reads the same in every command.
+`UsageError`), the help's wrapping, the program name a command shows (`prog`), and the check of
+an output path (`check_out`), so that each problem reads the same in every command. (A --tank is
+checked by docrl_jax.evaluate.tank_sets.check, which loads it.)
 
 Light on purpose (the standard library only): a command builds its parser and answers --help before
 it imports JAX, MuJoCo or Flax.
@@ -58,3 +59,44 @@ def prog(command: str) -> str:
     'python -m docrl_jax evaluate', 'python -m docrl_jax.evaluate')."""
     top = launcher()
     return f"{top} {command}" if top else f"python -m docrl_jax.{command}"
+
+
+def check_out(path: str | Path, flag: str = "--out", folder: bool = True, parents: bool = True) -> Path:
+    """An output the command will write, checked before it does any work: a folder (`folder`) or a file,
+    whose missing folders the command makes with their missing parents (`parents`), else only the
+    output folder itself. The folders are made here to prove they can be, then removed: nothing is
+    left behind. Raises UsageError naming the flag, the path and the problem, as every command
+    prints it ('--out /proc/nope: No such file or directory')."""
+    path = Path(path)
+    if path.exists() and path.is_dir() != folder:
+        raise UsageError(f"{flag} {path}: {'is a file, not a folder' if folder else 'is a folder, not a file'}")
+    where = path if folder else path.parent
+    if parents:
+        missing = [p for p in (where, *where.parents) if not p.exists()]
+    else:
+        missing = [where] if folder and not where.exists() else []
+    made: list[Path] = []
+    try:
+        for p in reversed(missing):   # from the top down
+            p.mkdir()
+            made.append(p)
+        if folder:
+            import tempfile
+            with tempfile.NamedTemporaryFile(dir=where, prefix=".write_check"):
+                pass
+        else:
+            existed = path.exists()
+            with open(path, "ab"):
+                pass
+            if not existed:
+                path.unlink()
+    except OSError as e:
+        raise UsageError(f"{flag} {path}: {e.strerror or type(e).__name__}") from None
+    finally:
+        for p in reversed(made):
+            try:
+                p.rmdir()
+            except OSError:
+                pass
+    return path
+

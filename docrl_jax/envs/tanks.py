@@ -327,7 +327,7 @@ def files(spec) -> list[Path]:
         path = packaged_dir() / f"{spec}.yaml"
         if not path.is_file():
             packaged = ", ".join(packaged_names()) or "none"
-            raise TankError(f"tank {str(spec)!r}: no such file or folder, nor a packaged tank; packaged: {packaged} "
+            raise TankError(f"{str(spec)!r}: no such file or folder, nor a packaged tank; packaged: {packaged} "
                             f"(or {_PACKAGED!r}, all of them){did_you_mean(str(spec), [*packaged_names(), _PACKAGED])}")
     if path.is_dir():
         found = sorted((f for f in path.iterdir() if f.suffix in SUFFIXES and f.is_file()), key=lambda f: f.name)

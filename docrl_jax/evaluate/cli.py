@@ -24,7 +24,7 @@ from typing import Any, Sequence
 import yaml
 
 from docrl_jax import pretrained
-from docrl_jax.arguments import OneLineParser, UsageError, prog
+from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
 from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, SCENARIOS
@@ -227,6 +227,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
             find_metrics_csv(d)
         except RunDirError as e:
             raise UsageError(str(e)) from None
+    if cfg["out"] is not None:
+        check_out(cfg["out"])
     return cfg
 
 

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from docrl_jax.arguments import OneLineParser, prog
+from docrl_jax.arguments import OneLineParser, check_out, prog
 from docrl_jax.evaluate import paper_results
 from docrl_jax.evaluate.protocol import DIRECTIONS
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, plus_minus
@@ -115,8 +115,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
+        if args.out:
+            check_out(args.out, folder=False)
         aggs = [a for e in args.evals for a in load_eval(e)]
-    except (FileNotFoundError, ValueError) as e:
+    except (FileNotFoundError, ValueError) as e:   # (a UsageError is a ValueError)
         ap.error(str(e))
     dupes = {(a["method"], a["scenario"], a["direction"]) for a in aggs}
     if len(dupes) != len(aggs):

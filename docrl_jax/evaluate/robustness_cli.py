@@ -25,7 +25,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Sequence
 
-from docrl_jax.arguments import OneLineParser, prog
+from docrl_jax.arguments import OneLineParser, check_out, prog
 from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax import pretrained
 from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
@@ -248,15 +248,7 @@ def output_dir(out: str | None) -> Path:
     """--out: a folder whose parent exists (created if it does not exist itself)."""
     if out is None:
         raise UsageError("--out DIR: where robustness.csv, .json, .md and .png go (its parent folder must exist)")
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise UsageError(f"--out {out}: exists and is not a folder")
-    parent = path.resolve().parent
-    if parent.exists() and not parent.is_dir():
-        raise UsageError(f"--out {out}: {parent} is not a folder")
-    if not parent.is_dir():
-        raise UsageError(f"--out {out}: the parent folder {parent} does not exist")
-    return path
+    return check_out(out, parents=False)
 
 
 def envelope_text() -> str:

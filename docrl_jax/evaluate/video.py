@@ -38,8 +38,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from docrl_jax import pretrained
+from docrl_jax.arguments import UsageError, check_out
 from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
-from docrl_jax.evaluate.cli import UsageError, check_guide
+from docrl_jax.evaluate.cli import check_guide
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
 from docrl_jax.evaluate.policies import policy_for
@@ -284,20 +285,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.tank is not None:
         from docrl_jax.evaluate.tank_sets import check
         cfg["tank_names"] = check(args.tank, rollout.eval_params(0, args.max_steps, **env))
-    check_writable(out)
+    check_out(out, folder=False, parents=False)
     return cfg
-
-
-def check_writable(path: Path) -> None:
-    """UsageError when `path` cannot be written (no folder, no permission, a directory)."""
-    existed = path.exists()
-    try:
-        with open(path, "ab"):
-            pass
-    except OSError as e:
-        raise UsageError(f"--out: {os_error_line(e)}") from None
-    if not existed:
-        path.unlink()
 
 
 def import_mujoco() -> None:

@@ -17,7 +17,7 @@ import sys
 from typing import Sequence
 
 from docrl_jax import pretrained
-from docrl_jax.arguments import OneLineParser, prog
+from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
 from docrl_jax.errors import ExportError, RunDirError, os_error_line
 from docrl_jax.export.artefacts import DEFAULT_OPSET, FORMATS
 
@@ -70,13 +70,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.policy is not None and (args.which is not None or args.seed_index != 0):
             raise ExportError("--which and --seed-index choose within a run: a shipped --policy is one seed's final "
                               "policy")
-        if args.policy is not None:
-            result = export_shipped(_shipped(args.policy), args.out, formats=formats, force=args.force,
+        name = _shipped(args.policy) if args.policy is not None else None
+        check_out(args.out)
+        if name is not None:
+            result = export_shipped(name, args.out, formats=formats, force=args.force,
                                     opset=args.opset, platforms=platforms)
         else:
             result = export_policy(args.run, args.out, seed_index=args.seed_index, which=args.which,
                                    formats=formats, force=args.force, opset=args.opset, platforms=platforms)
-    except (RunDirError, ExportError, ImportError, pretrained.UnknownPolicy) as e:
+    except (RunDirError, ExportError, ImportError, pretrained.UnknownPolicy, UsageError) as e:
         return _fail(str(e))
     except OSError as e:   # an --out that cannot be made or written
         return _fail(os_error_line(e))

@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         cache = program_store.enable_compile_cache(args.compile_cache)
         if not distributed:  # (several processes have no program store)
             program_store.prefetch(config)  # the stored programs load while the imports below run
-        check_tank(config)
+        check_tank(config, "--tank" if args.tank is not None else "env.tank")
         from docrl_jax.train.run import check_run_dir, run  # MuJoCo and MJX, Flax, Orbax: seconds
         if not args.resume:  # (a resume's directory was checked before its config was read)
             check_run_dir(run_dir, resume=False)
@@ -126,16 +126,17 @@ def launch_summary(config: Config, run_dir: Path) -> list[str]:
             f"[bold]run directory:[/] {run_dir} (full config: {run_dir / runs.CONFIG_FILE})"]
 
 
-def check_tank(config: Config) -> None:
+def check_tank(config: Config, flag: str = "env.tank") -> None:
     """A run's tank set (env.tank) loads for its env, every rule of docs/TANKS.md checked; its one-line
-    `tanks.TankError` as a ConfigError. Nothing to do without env.tank."""
+    error after `flag` (what set it) as a ConfigError. Nothing to do without env.tank."""
     kwargs = env_kwargs(config)
     if kwargs.get("tank") is None:
         return
-    from docrl_jax.envs import make_params, tanks
+    from docrl_jax.envs import make_params
+    from docrl_jax.evaluate.tank_sets import TankSetError, check
     try:
-        tanks.load_set(kwargs["tank"], make_params(config.env.scenario, **kwargs))
-    except tanks.TankError as e:
+        check(kwargs["tank"], make_params(config.env.scenario, **kwargs), flag)
+    except TankSetError as e:
         raise ConfigError(str(e)) from None
 
 
