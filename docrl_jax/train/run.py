@@ -78,10 +78,12 @@ def check_resume_changes(run_dir: Path, config: Config, own: Config | None = Non
 
 class _Display:
     """The progress bar with the latest statistics on a line of their own (they do not fit beside it),
-    or with --no-progress one printed line per chunk (logs, batch jobs)."""
+    or with --no-progress, or when the output is not an interactive terminal (a log file, a pipe, a
+    batch job), one whole printed line per chunk: a live display there is drawn once, at its end, cut
+    at 80 columns, with the next message run onto its last line."""
 
     def __init__(self, console: Console, name: str, total: int, done: int, show_progress: bool):
-        self.console, self.show_progress = console, show_progress
+        self.console, self.show_progress = console, show_progress and console.is_interactive
         self.progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
                                  TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"),
                                  TextColumn("{task.fields[sps]}"), TextColumn("{task.fields[eta]}"), console=console)
