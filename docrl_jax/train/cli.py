@@ -47,8 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its newest intact "
                                                          "checkpoint; --set may change only its length, devices and "
                                                          "cadences (docrl_jax.train.run.RESUMABLE)")
-    p.add_argument("--no-progress", action="store_true", help="print one line per chunk instead of a progress bar (always so when the output "
-                                                                  "is not a terminal: a log file, a pipe)")
+    p.add_argument("--no-progress", action="store_true",
+                   help="print one line per chunk instead of a progress bar (always so when the output is not a "
+                        "terminal: a log file, a pipe)")
     p.add_argument("--compile-cache", default=None, metavar="DIR|off",
                    help="JAX persistent compilation cache folder (default $DOCRL_JAX_COMPILE_CACHE, else "
                         "~/.cache/docrl_jax/jax); 'off' disables it")
