@@ -114,3 +114,13 @@ def test_train_names_the_flag_of_a_bad_tank(bad_tanks, monkeypatch):
     assert console.file.getvalue().strip().splitlines() == [
         f"error: --tank {bad_tanks / 'picture.gif'}: {TANK_PROBLEMS['picture.gif']}"]
     assert not (bad_tanks / "run").exists()
+
+
+def test_the_readme_commands_write_under_the_ignored_out_folder():
+    """What the README's commands write lands in out/, which git ignores, not across the checkout."""
+    import re
+    from pathlib import Path
+    root = Path(__file__).resolve().parent.parent
+    outs = re.findall(r"^    (?:python -m docrl_jax\S*|docrl) .*--out (\S+)", (root / "README.md").read_text(), re.M)
+    assert len(outs) >= 8 and all(o.startswith("out/") for o in outs), outs
+    assert "/out/" in (root / ".gitignore").read_text().splitlines()

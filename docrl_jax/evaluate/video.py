@@ -285,7 +285,7 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.tank is not None:
         from docrl_jax.evaluate.tank_sets import check
         cfg["tank_names"] = check(args.tank, rollout.eval_params(0, args.max_steps, **env))
-    check_out(out, folder=False, parents=False)
+    check_out(out, folder=False)   # its missing folders are made when it is written
     return cfg
 
 
@@ -365,6 +365,7 @@ def _render(args, cfg: dict) -> int:
             parts.append(render_frames(renderers[scene[i]], [track], args.every, args.fps))
         frames, durations = np.concatenate([f for f, _ in parts]), [d for _, ds in parts for d in ds]
         t2 = time.time()
+    cfg["out"].parent.mkdir(parents=True, exist_ok=True)
     written = write_video(cfg["out"], frames, durations, args.fps)
     views = 2 if args.camera == "both" else 1
     print(f"wrote {cfg['out']}: {written} frames of {args.width}x{args.height} at {args.fps:g} fps, "
