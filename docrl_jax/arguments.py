@@ -39,6 +39,14 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
+    def _check_value(self, action, value):
+        """argparse's check of a value with choices (a subcommand's name too), naming the nearest."""
+        if action.choices is not None and value not in action.choices:
+            from docrl_jax.schema import did_you_mean
+            choices = ", ".join(map(repr, action.choices))
+            raise argparse.ArgumentError(action, f"invalid choice: {value!r} (choose from {choices})"
+                                                 f"{did_you_mean(str(value), [str(c) for c in action.choices])}")
+
 
 def launcher() -> str | None:
     """How this process was started when through the package's one command line: 'docrl' (the console

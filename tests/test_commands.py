@@ -50,6 +50,14 @@ def test_a_subcommand_gets_the_rest_of_the_command_line(capsys):
     assert e.value.code == 2 and "give a subcommand: train, evaluate" in capsys.readouterr().err
 
 
+def test_a_mistyped_choice_names_the_nearest(capsys):
+    with pytest.raises(SystemExit) as e:
+        commands.main(["tanks", "chek"])
+    assert e.value.code == 2 and capsys.readouterr().err.splitlines() == [
+        "python -m docrl_jax.tanks: error: argument ACTION: invalid choice: 'chek' (choose from 'list', 'check'); "
+        "did you mean 'check'?"]
+
+
 def test_tanks_check_prints_one_line_per_file(tmp_path, capsys):
     (tmp_path / "picture.gif").write_bytes(b"GIF89a\x01\x00\x01\x00\x80\xff\x00\x00\x00\x00")
     (tmp_path / "words.yaml").write_text("just some words\n")

@@ -1,4 +1,5 @@
-"""`docrl tanks`: the packaged tanks, and tank files checked before they are flown (docs/TANKS.md).
+"""`docrl tanks` (`python -m docrl_jax.tanks`): the packaged tanks, and tank files checked before they are
+flown (docs/TANKS.md).
 
     docrl tanks list                          # the gallery: each packaged tank's name and description
     docrl tanks check my_tank.yaml more/*.yaml
