@@ -42,9 +42,10 @@ def install() -> None:
         sys.meta_path.insert(0, _MovedFinder())
 
 
-def command(module_name: str, target: str) -> None:
+def command(module_name: str, target: str, home: str | None = None) -> None:
     """Body of a command module kept at a short name: run `target.main()` under `python -m`, and
-    make attribute look-ups on the short module name the module where the code lives."""
+    make attribute look-ups on the short module name say the module where the code lives (`home`,
+    default `target`)."""
     module = sys.modules[module_name]
     if module_name == "__main__":
         raise SystemExit(importlib.import_module(target).main())
@@ -53,7 +54,7 @@ def command(module_name: str, target: str) -> None:
         if name.startswith("__"):  # the import system's own look-ups
             raise AttributeError(name)
         # ImportError, not AttributeError: `from module import name` would replace the latter's message.
-        raise ImportError(f"{module_name}.{name}: {module_name} is only the command; import {name} from {target}")
+        raise ImportError(f"{module_name}.{name}: {module_name} is only the command; import {name} from {home or target}")
     module.__getattr__ = __getattr__
 
 

@@ -10,7 +10,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["Track", "overlay_lines", "track_from_infos", "track_from_states"]
+__all__ = ["CAMERAS", "Track", "overlay_lines", "track_from_infos", "track_from_states"]
+
+# The renderer's views (docrl_jax.envs.rendering.Renderer's `camera`): here, so that a command line offers
+# them without importing MuJoCo.
+CAMERAS = ("both", "follow", "overview")
 
 
 @dataclass

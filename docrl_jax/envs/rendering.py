@@ -35,7 +35,7 @@ import numpy as np
 from docrl_jax.envs import sensors
 from docrl_jax.envs.geometry import TANK_HALF_WIDTH
 from docrl_jax.envs.params import EnvParams
-from docrl_jax.envs.render_tracks import Track, overlay_lines, track_from_infos, track_from_states
+from docrl_jax.envs.render_tracks import CAMERAS, Track, overlay_lines, track_from_infos, track_from_states
 from docrl_jax.errors import RenderError, short_reason
 
 # What is drawn of a trajectory (`Track`) and its builders live in docrl_jax.envs.render_tracks; they
@@ -43,7 +43,6 @@ from docrl_jax.errors import RenderError, short_reason
 __all__ = ["CAMERAS", "RenderError", "Renderer", "Track", "make_gl_renderer", "render_states", "scene_model",
            "track_from_infos", "track_from_states"]
 
-CAMERAS = ("both", "follow", "overview")
 
 WATER_RGBA = (0.05, 0.55, 0.6, 0.22)         # the water volume seen from above
 SURFACE_RGBA = (0.3, 0.95, 1.0, 1.0)         # the surface line on the walls

@@ -63,11 +63,15 @@ def packaged_names() -> list[str]:
 
 
 # ---------------------------------------------------------------- reading a file
-def _read(path: Path) -> dict:
+def read(path: Path) -> dict:
+    """The mapping a tank file holds, unchecked; `TankError` for a file that is not YAML or JSON text
+    holding a mapping."""
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as error:
         raise TankError(f"{path}: cannot read the tank file ({error.strerror or error})") from None
+    except UnicodeDecodeError:   # an image, an archive, ...
+        raise TankError(f"{path}: not a text file; a tank file is YAML or JSON text (docs/TANKS.md)") from None
     try:
         data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
     except (yaml.YAMLError, json.JSONDecodeError) as error:
@@ -243,7 +247,7 @@ def _check_routes(route, p: EnvParams, where: str) -> None:
 
 def _parse(path: Path, p: EnvParams) -> layouts.Layout:
     where = str(path)
-    data = _read(path)
+    data = read(path)
     _keys(data, TOP_KEYS, ("floor_top",), where)
     for key in ("name", "description"):
         if key in data:
@@ -323,7 +327,7 @@ def files(spec) -> list[Path]:
         path = packaged_dir() / f"{spec}.yaml"
         if not path.is_file():
             packaged = ", ".join(packaged_names()) or "none"
-            raise TankError(f"tank {str(spec)!r}: no such file or folder, nor a packaged tank; packaged: {packaged} "
+            raise TankError(f"{str(spec)!r}: no such file or folder, nor a packaged tank; packaged: {packaged} "
                             f"(or {_PACKAGED!r}, all of them){did_you_mean(str(spec), [*packaged_names(), _PACKAGED])}")
     if path.is_dir():
         found = sorted((f for f in path.iterdir() if f.suffix in SUFFIXES and f.is_file()), key=lambda f: f.name)
@@ -349,7 +353,7 @@ def names(spec) -> list[str]:
     """The names of the tanks of `spec`, in set order (a file's `name`, else its stem)."""
     out = []
     for f in files(spec):
-        name = _read(f).get("name", f.stem)
+        name = read(f).get("name", f.stem)
         out.append(name if isinstance(name, str) else f.stem)
     return out
 

@@ -13,14 +13,19 @@
     robustness_cli     `python -m docrl_jax.robustness`
     robustness_report  its robustness.{csv,json,md,png}, the median over seeds
 
-Importing the package loads protocol, rollout and tables only (no Matplotlib, no checkpoint code).
+The package's names below are imported from protocol, rollout and tables when first used, so that
+`python -m docrl_jax.evaluate --help` (which imports this package first) answers before JAX is imported.
 """
 
-from docrl_jax.evaluate.protocol import (DEFAULT_EVAL_ENV, DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS, TrialSpec,
-                                         trial_starts)
-from docrl_jax.evaluate.rollout import evaluate_policy, make_eval_env, make_rollout, run_trials, trial_metrics
-from docrl_jax.evaluate.tables import (SHORT, aggregate_seeds, markdown_table, mean_std, plus_minus, summarize,
-                                       trial_table, write_outputs)
+from docrl_jax.moved import lazy_members
+
+__getattr__ = lazy_members(__name__, {
+    **{name: "docrl_jax.evaluate.protocol" for name in ("DEFAULT_EVAL_ENV", "DIRECTIONS", "NOMINAL_YAW", "OUTCOMES",
+                                                       "SCENARIOS", "TrialSpec", "trial_starts")},
+    **{name: "docrl_jax.evaluate.rollout" for name in ("evaluate_policy", "make_eval_env", "make_rollout",
+                                                      "run_trials", "trial_metrics")},
+    **{name: "docrl_jax.evaluate.tables" for name in ("SHORT", "aggregate_seeds", "markdown_table", "mean_std",
+                                                     "plus_minus", "summarize", "trial_table", "write_outputs")}})
 
 
 def main(argv=None) -> int:

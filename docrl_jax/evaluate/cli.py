@@ -24,27 +24,14 @@ from typing import Any, Sequence
 import yaml
 
 from docrl_jax import pretrained
+from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax.evaluate import rollout, tank_sets
-from docrl_jax.evaluate.run_dirs import check_run_dir, config_name, run_num_seeds
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV, SCENARIOS
 
 # The built-in policies that need no run directory and fly in every command with --policy. The
 # robustness benchmark (robustness_cli) reads this name and flies the baselines alone.
 POLICIES = pretrained.BASELINES
-
-
-class UsageError(ValueError):
-    """A bad command line; the message lists the valid choices."""
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line, `PROG: error: MESSAGE`, exit status 2, without the
-    usage block (the message names the valid choices; --help shows the rest)."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def add_which_argument(p: argparse.ArgumentParser) -> None:
@@ -164,8 +151,7 @@ def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARI
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(prog="python -m docrl_jax.evaluate", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog=prog("evaluate"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group()
     src.add_argument("--run", metavar="RUN_DIR", nargs="+",
                      help="a trainer run directory (config.yaml + checkpoints); several run directories of one "
@@ -210,6 +196,8 @@ def build_parser() -> argparse.ArgumentParser:
 def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     """Checks the command line before anything is compiled; raises UsageError naming valid choices."""
     from docrl_jax.baselines.bba import DEPTH_PHASES
+    from docrl_jax.evaluate import rollout, tank_sets
+    from docrl_jax.evaluate.run_dirs import check_run_dir, config_name, run_num_seeds
     if args.run is None and args.policy is None and not args.curves:
         raise UsageError("nothing to do: give --run RUN_DIR or --policy NAME "
                          f"(valid policies: {', '.join(pretrained.POLICY_NAMES)}), and/or --curves RUN_DIR ...")
@@ -252,6 +240,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
             find_metrics_csv(d)
         except RunDirError as e:
             raise UsageError(str(e)) from None
+    if cfg["out"] is not None:
+        check_out(cfg["out"])
     return cfg
 
 

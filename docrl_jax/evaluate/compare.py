@@ -11,13 +11,13 @@ as in the paper (DoCRL-D, DoCRL-S, Sto., Det., BBA, then any other method).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 from pathlib import Path
 from typing import Sequence
 
+from docrl_jax.arguments import OneLineParser, check_out, prog
 from docrl_jax.evaluate import paper_results
 from docrl_jax.evaluate.protocol import DIRECTIONS
 from docrl_jax.evaluate.tables import SHORT, aggregate_seeds, plus_minus
@@ -104,14 +104,21 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
     return "\n".join(out)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m docrl_jax.compare", description=__doc__.split("\n\n")[0])
+def build_parser() -> OneLineParser:
+    ap = OneLineParser(prog=prog("compare"), description=__doc__.split("\n\n")[0])
     ap.add_argument("evals", nargs="+", help="evaluation output directories (or their results.json)")
     ap.add_argument("--out", help="write the Markdown here (default: print only)")
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = build_parser()
     args = ap.parse_args(argv)
     try:
+        if args.out:
+            check_out(args.out, folder=False)
         aggs = [a for e in args.evals for a in load_eval(e)]
-    except (FileNotFoundError, ValueError) as e:
+    except (FileNotFoundError, ValueError) as e:   # (a UsageError is a ValueError)
         ap.error(str(e))
     dupes = {(a["method"], a["scenario"], a["direction"]) for a in aggs}
     if len(dupes) != len(aggs):

@@ -30,9 +30,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import jax
-import jax.numpy as jnp
-
 DIRECTIONS = ("air_to_water", "water_to_air")
 SCENARIOS = (1, 2, 3)
 # How a trial ends; `run_trials` returns each trial's outcome as an index into this tuple.
@@ -52,6 +49,8 @@ class TrialSpec:
 
 def trial_starts(key, start, num_trials: int, yaw: float, spec: TrialSpec = TrialSpec()):
     """Jittered start positions (N, 3) and yaws (N,)."""
+    import jax  # here: the commands read the constants above before they import JAX
+    import jax.numpy as jnp
     k_xy, k_yaw = jax.random.split(key)
     xy = jax.random.uniform(k_xy, (num_trials, 2), minval=-spec.start_jitter_xy, maxval=spec.start_jitter_xy)
     pos = jnp.asarray(start, jnp.float32)[None] + jnp.concatenate([xy, jnp.zeros((num_trials, 1))], -1)

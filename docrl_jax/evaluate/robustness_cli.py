@@ -25,8 +25,9 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Sequence
 
+from docrl_jax.arguments import OneLineParser, check_out, prog
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax import pretrained, runs
+from docrl_jax import pretrained
 from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
@@ -67,8 +68,7 @@ def parse_perturbations(text: str) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = cli.OneLineParser(prog="python -m docrl_jax.robustness", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = OneLineParser(prog=prog("robustness"), description=__doc__.split("\n\n")[0])
     p.add_argument("--run", metavar="RUN_DIR", nargs="+", action="append",
                    help="a trainer run directory, or several of one config (separate launches: the method's seeds); "
                         "give --run again for another method beside it")
@@ -182,6 +182,7 @@ def _check_settings(cfg: dict, max_steps: int) -> None:
 
 def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
     """The methods of the command line in order (each --run group, then --policy), labelled."""
+    from docrl_jax import runs
     from docrl_jax.baselines import bba
     methods = []
     for group in args.run or []:
@@ -234,6 +235,7 @@ def methods_of(args, seed_indices: list[int] | None) -> list[Method]:
 def group_policy(group: list[str], which: str | None) -> str:
     """The policy ("final" or "best") that --which loads from every run directory of one --run: the same in
     each, or a UsageError (one method's seeds are all final or all best policies)."""
+    from docrl_jax import runs
     kept = {run: runs.checkpoint_policy(run, which) for run in group}
     if len(set(kept.values())) > 1:
         raise UsageError(f"--run {' '.join(group)}: the runs keep different policies ("
@@ -246,15 +248,7 @@ def output_dir(out: str | None) -> Path:
     """--out: a folder whose parent exists (created if it does not exist itself)."""
     if out is None:
         raise UsageError("--out DIR: where robustness.csv, .json, .md and .png go (its parent folder must exist)")
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise UsageError(f"--out {out}: exists and is not a folder")
-    parent = path.resolve().parent
-    if parent.exists() and not parent.is_dir():
-        raise UsageError(f"--out {out}: {parent} is not a folder")
-    if not parent.is_dir():
-        raise UsageError(f"--out {out}: the parent folder {parent} does not exist")
-    return path
+    return check_out(out, parents=False)
 
 
 def envelope_text() -> str:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from docrl_jax import pretrained, runs
+from docrl_jax import pretrained
 from docrl_jax.errors import RunDirError
 
 
@@ -16,6 +16,7 @@ def run_config(run_dir: str | os.PathLike) -> dict:
     """A run directory's config.yaml as plain YAML."""
     # Plain YAML rather than runs.read_config: only name, train.num_seeds and agent are read here, and
     # a config of an older version still gets its policy loaded (or a precise error) by load_policy.
+    from docrl_jax import runs   # (runs imports JAX: the commands check their arguments first)
     with open(Path(run_dir) / runs.CONFIG_FILE) as f:
         return yaml.safe_load(f) or {}
 
@@ -32,6 +33,7 @@ def run_vehicle(run_dir: str | os.PathLike | None, policy: str | None = None) ->
 
 def check_run_dir(run_dir: str | os.PathLike) -> Path:
     """Cheap checks of a run directory before load_policy: exists, is a directory, has config.yaml."""
+    from docrl_jax import runs
     path = Path(run_dir)
     if not path.exists():
         raise RunDirError(f"run directory {str(path)!r} does not exist")

@@ -16,14 +16,16 @@ class TankSetError(ValueError):
     their usage block."""
 
 
-def check(spec: str, params) -> list[str]:
+def check(spec: str, params, flag: str = "--tank") -> list[str]:
     """The names of the tank set `spec`, loaded for `params` as the trials will load it (every rule of
-    docs/TANKS.md checked, before anything compiles); TankSetError with the set's one line."""
+    docs/TANKS.md checked, before anything compiles); TankSetError with the set's one line after the
+    flag that gave it ('--tank /x/picture.gif: not a text file; ...': the file, then the problem). Every
+    command checks its tank set here."""
     from docrl_jax.envs.tanks import TankError
     try:
         return load(spec, params)[0]
     except TankError as e:
-        raise TankSetError(str(e)) from None
+        raise TankSetError(f"{flag} {e}") from None
 
 
 def load(spec: str, params) -> tuple[list[str], object]:

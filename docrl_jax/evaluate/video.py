@@ -38,8 +38,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from docrl_jax import pretrained
+from docrl_jax.arguments import UsageError, check_out
 from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
-from docrl_jax.evaluate.cli import UsageError, check_guide
+from docrl_jax.evaluate.cli import check_guide
 from docrl_jax.evaluate.tank_sets import TankSetError
 from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
 from docrl_jax.evaluate.policies import policy_for
@@ -181,10 +182,10 @@ def parse_direction(text: str) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from docrl_jax.envs.rendering import CAMERAS
-    from docrl_jax.evaluate.cli import OneLineParser, add_guide_argument, add_which_argument
-    p = OneLineParser(prog="python -m docrl_jax.render", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    from docrl_jax.envs.render_tracks import CAMERAS
+    from docrl_jax.arguments import OneLineParser, prog
+    from docrl_jax.evaluate.cli import add_guide_argument, add_which_argument
+    p = OneLineParser(prog=prog("render"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group()
     src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory: its policy (--which)")
     src.add_argument("--policy", metavar="NAME",
@@ -284,20 +285,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.tank is not None:
         from docrl_jax.evaluate.tank_sets import check
         cfg["tank_names"] = check(args.tank, rollout.eval_params(0, args.max_steps, **env))
-    check_writable(out)
+    check_out(out, folder=False)   # its missing folders are made when it is written
     return cfg
-
-
-def check_writable(path: Path) -> None:
-    """UsageError when `path` cannot be written (no folder, no permission, a directory)."""
-    existed = path.exists()
-    try:
-        with open(path, "ab"):
-            pass
-    except OSError as e:
-        raise UsageError(f"--out: {os_error_line(e)}") from None
-    if not existed:
-        path.unlink()
 
 
 def import_mujoco() -> None:
@@ -310,13 +299,13 @@ def import_mujoco() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
     try:
         import_mujoco()
     except RenderError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    parser = build_parser()
-    args = parser.parse_args(argv)
     try:
         cfg = validate_args(args)
     except (UsageError, RunDirError, pretrained.UnknownPolicy, TankSetError) as e:
@@ -376,6 +365,7 @@ def _render(args, cfg: dict) -> int:
             parts.append(render_frames(renderers[scene[i]], [track], args.every, args.fps))
         frames, durations = np.concatenate([f for f, _ in parts]), [d for _, ds in parts for d in ds]
         t2 = time.time()
+    cfg["out"].parent.mkdir(parents=True, exist_ok=True)
     written = write_video(cfg["out"], frames, durations, args.fps)
     views = 2 if args.camera == "both" else 1
     print(f"wrote {cfg['out']}: {written} frames of {args.width}x{args.height} at {args.fps:g} fps, "

@@ -17,16 +17,13 @@ import sys
 from typing import Sequence
 
 from docrl_jax import pretrained
+from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
 from docrl_jax.errors import ExportError, RunDirError, os_error_line
 from docrl_jax.export.artefacts import DEFAULT_OPSET, FORMATS
 
-PROG = "python -m docrl_jax.export"
-
-
 def build_parser() -> argparse.ArgumentParser:
-    from docrl_jax.evaluate.cli import OneLineParser, add_which_argument
-    p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0],
-                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    from docrl_jax.evaluate.cli import add_which_argument
+    p = OneLineParser(prog=prog("export"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory (config.yaml + checkpoints)")
     src.add_argument("--policy", metavar="NAME",
@@ -55,7 +52,7 @@ def _shipped(name: str) -> str:
 
 
 def _fail(message: str) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
+    print(f"{prog('export')}: error: {message}", file=sys.stderr)
     return 2
 
 
@@ -73,13 +70,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.policy is not None and (args.which is not None or args.seed_index != 0):
             raise ExportError("--which and --seed-index choose within a run: a shipped --policy is one seed's final "
                               "policy")
-        if args.policy is not None:
-            result = export_shipped(_shipped(args.policy), args.out, formats=formats, force=args.force,
+        name = _shipped(args.policy) if args.policy is not None else None
+        check_out(args.out)
+        if name is not None:
+            result = export_shipped(name, args.out, formats=formats, force=args.force,
                                     opset=args.opset, platforms=platforms)
         else:
             result = export_policy(args.run, args.out, seed_index=args.seed_index, which=args.which,
                                    formats=formats, force=args.force, opset=args.opset, platforms=platforms)
-    except (RunDirError, ExportError, ImportError, pretrained.UnknownPolicy) as e:
+    except (RunDirError, ExportError, ImportError, pretrained.UnknownPolicy, UsageError) as e:
         return _fail(str(e))
     except OSError as e:   # an --out that cannot be made or written
         return _fail(os_error_line(e))

@@ -16,9 +16,8 @@ import numpy as np
 
 from docrl_jax import resources
 from docrl_jax.config import Config, env_kwargs
-from docrl_jax.envs import ACTION_SIZE, DIST_SCALE, OBS_SIZE, make_params
+from docrl_jax.envs import make_params
 from docrl_jax.envs.params import VERTICAL_BEAMS
-from docrl_jax.envs.sensors import NUM_BEAMS, beam_angles
 
 FORMAT = "docrl_jax policy export, version 1"
 VERSION_PACKAGES = ("docrl_jax", "jax", "jaxlib", "flax", "numpy", "jax2onnx", "onnx", "onnxruntime")
@@ -38,11 +37,14 @@ def io_names(recurrent: bool) -> tuple[list[str], list[str]]:
 
 
 def _beams(fov_deg: float, max_range: float) -> dict[str, Any]:
+    from docrl_jax.envs.sensors import beam_angles   # (the env's modules import JAX: `export --help` need not)
     return {"fov_deg": fov_deg, "max_range_m": max_range,
             "bearings_deg": [round(float(a), 4) for a in np.rad2deg(beam_angles(fov_deg))]}
 
 
 def observation_spec(config: Config) -> dict[str, Any]:
+    from docrl_jax.envs import ACTION_SIZE, DIST_SCALE, OBS_SIZE
+    from docrl_jax.envs.sensors import NUM_BEAMS
     p = make_params(config.env.scenario, **env_kwargs(config))
     vertical = [{"index": [OBS_SIZE, OBS_SIZE + VERTICAL_BEAMS - 1], "name": "vertical_ranges",
                  "value": "range / max range of the active sensor, in [0, 1], of two beams from the vehicle centre "
@@ -87,6 +89,7 @@ def observation_spec(config: Config) -> dict[str, Any]:
 
 
 def action_spec(config: Config) -> dict[str, Any]:
+    from docrl_jax.envs import ACTION_SIZE
     p = make_params(config.env.scenario, **env_kwargs(config))
     return {
         "size": ACTION_SIZE, "dtype": "float32", "shape": [BATCH, ACTION_SIZE], "range": [-1.0, 1.0],

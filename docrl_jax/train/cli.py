@@ -26,18 +26,16 @@ import os
 import time
 from pathlib import Path
 
-from docrl_jax import sharding
+from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.config import Config, env_kwargs, load_config, packaged_config_names, parse_overrides
 from docrl_jax.errors import ConfigError, RunDirError
-from docrl_jax.train import program_store
-from docrl_jax.train.loop import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
-from docrl_jax.train.program_store import enable_compile_cache
+from docrl_jax.train.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
 
 __all__ = ["EXIT_CONFIG", "EXIT_INTERRUPTED", "EXIT_NONFINITE", "EXIT_OK", "build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m docrl_jax.train", description=__doc__.split("\n\n")[0])
+    p = OneLineParser(prog=prog("train"), description=__doc__.split("\n\n")[0])
     p.add_argument("--config", help=f"packaged config name ({', '.join(packaged_config_names())}) or a YAML path")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one config value (YAML scalar); repeatable")
@@ -49,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its newest intact "
                                                          "checkpoint; --set may change only its length, devices and "
                                                          "cadences (docrl_jax.train.run.RESUMABLE)")
-    p.add_argument("--no-progress", action="store_true", help="print one line per chunk instead of a progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="print one line per chunk instead of a progress bar (always so when the output is not a "
+                        "terminal: a log file, a pipe)")
     p.add_argument("--compile-cache", default=None, metavar="DIR|off",
                    help="JAX persistent compilation cache folder (default $DOCRL_JAX_COMPILE_CACHE, else "
                         "~/.cache/docrl_jax/jax); 'off' disables it")
@@ -78,6 +78,9 @@ def process_start_time() -> float:
 def main(argv: list[str] | None = None) -> int:
     launch = process_start_time()
     args = build_parser().parse_args(argv)
+    # JAX with the device runtime (seconds): after the command line, so --help and its errors come at once
+    from docrl_jax import sharding
+    from docrl_jax.train import program_store
     console = make_console()
     notes: list[str] = []
     try:
@@ -90,10 +93,10 @@ def main(argv: list[str] | None = None) -> int:
                 raise RunDirError("a multi-process run needs --run-dir: one directory every process can reach "
                                   "(a shared file system when the processes are on several hosts)")
         config, run_dir = _resolve(args, notes)
-        cache = enable_compile_cache(args.compile_cache)
+        cache = program_store.enable_compile_cache(args.compile_cache)
         if not distributed:  # (several processes have no program store)
             program_store.prefetch(config)  # the stored programs load while the imports below run
-        check_tank(config)
+        check_tank(config, "--tank" if args.tank is not None else "env.tank")
         from docrl_jax.train.run import check_run_dir, run  # MuJoCo and MJX, Flax, Orbax: seconds
         if not args.resume:  # (a resume's directory was checked before its config was read)
             check_run_dir(run_dir, resume=False)
@@ -125,16 +128,17 @@ def launch_summary(config: Config, run_dir: Path) -> list[str]:
             f"[bold]run directory:[/] {run_dir} (full config: {run_dir / runs.CONFIG_FILE})"]
 
 
-def check_tank(config: Config) -> None:
+def check_tank(config: Config, flag: str = "env.tank") -> None:
     """A run's tank set (env.tank) loads for its env, every rule of docs/TANKS.md checked; its one-line
-    `tanks.TankError` as a ConfigError. Nothing to do without env.tank."""
+    error after `flag` (what set it) as a ConfigError. Nothing to do without env.tank."""
     kwargs = env_kwargs(config)
     if kwargs.get("tank") is None:
         return
-    from docrl_jax.envs import make_params, tanks
+    from docrl_jax.envs import make_params
+    from docrl_jax.evaluate.tank_sets import TankSetError, check
     try:
-        tanks.load_set(kwargs["tank"], make_params(config.env.scenario, **kwargs))
-    except tanks.TankError as e:
+        check(kwargs["tank"], make_params(config.env.scenario, **kwargs), flag)
+    except TankSetError as e:
         raise ConfigError(str(e)) from None
 
 

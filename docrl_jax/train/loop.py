@@ -13,7 +13,7 @@ running alongside at a checkpoint or a stop, are paused ones.
 Ctrl-C (or SIGTERM, as a cluster's scheduler sends before it kills a job) is answered at once:
 the loop finishes the running chunk (XLA cannot stop it half-way), saves a checkpoint and stops.
 A second one says again what is happening, with the running chunk's time left; a third quits
-without waiting (`exit_process`), keeping the checkpoints already written; none interrupts a
+without waiting (docrl_jax.train.console.exit_process), keeping the checkpoints already written; none interrupts a
 checkpoint being written.
 """
 
@@ -21,30 +21,20 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import signal
-import sys
 import threading
 import time
 from concurrent import futures
 from dataclasses import dataclass
-from typing import Any, Callable, NamedTuple, NoReturn
+from typing import Any, Callable, NamedTuple
 
 import jax
 import numpy as np
 
 from docrl_jax.train import metrics
+from docrl_jax.train.console import EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, waiters
 from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.metrics import duration
-
-EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
-
-
-def make_console(**kwargs):
-    """The commands' Rich console: output that is not a terminal (a log file, a pipe) is not wrapped
-    at 80 columns, so a printed command or path stays on one line."""
-    from rich.console import Console
-    return Console(soft_wrap=True, **kwargs)
 
 
 class Cadence:
@@ -184,9 +174,6 @@ class Interrupt:
                 raise KeyboardInterrupt
 
 
-_waiters: list[threading.Thread] = []   # `wait`'s helper threads, while the device computes
-
-
 def wait(tree: Any, interrupt: Interrupt | None = None, poll_s: float = 0.1) -> Any:
     """Blocks until the device has computed `tree`. A helper thread does the blocking, so this
     (main) thread keeps running signal handlers and prints a Ctrl-C's message at once; it wakes the
@@ -194,7 +181,7 @@ def wait(tree: Any, interrupt: Interrupt | None = None, poll_s: float = 0.1) -> 
     ready = threading.Event()
     waiter = threading.Thread(target=lambda: (_block_quietly(tree), ready.set()), daemon=True,
                               name="docrl_jax device wait")
-    _waiters[:] = [t for t in _waiters if t.is_alive()] + [waiter]
+    waiters[:] = [t for t in waiters if t.is_alive()] + [waiter]
     waiter.start()
     while not ready.wait(poll_s):
         if interrupt is not None:
@@ -219,25 +206,6 @@ def _block_quietly(tree: Any) -> None:
         jax.block_until_ready(tree)
     except Exception:  # re-raised in the main thread by `wait`
         pass
-
-
-def exit_process(status: int) -> NoReturn:
-    """Ends a command's process with `status`. After a third Ctrl-C the device may still compute the
-    chunk the loop walked away from, with `wait`'s helper thread blocked inside XLA: Python's
-    shutdown would end that thread in the middle of the call and the C++ runtime would abort
-    ('terminate called after throwing an instance of ...', exit 134). Then the process leaves
-    without Python's shutdown, once the threads that Python would wait for have ended (the program
-    store's writes) and its output is flushed; what it keeps (checkpoints, metrics.csv, TensorBoard
-    events) is written and closed by then."""
-    if any(t.is_alive() for t in _waiters):
-        for thread in threading.enumerate():
-            if not thread.daemon and thread is not threading.current_thread():
-                thread.join()
-        for stream in (sys.stdout, sys.stderr):
-            with contextlib.suppress(Exception):
-                stream.flush()
-        os._exit(status)
-    raise SystemExit(status)
 
 
 @dataclass

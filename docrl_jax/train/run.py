@@ -29,8 +29,8 @@ from docrl_jax.envs import make_params
 from docrl_jax.envs.huauv import scene_path
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
-from docrl_jax.train.loop import (EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, Cadence, Evaluations, Hooks, Interrupt,
-                                  make_console, run_chunks, schedule)
+from docrl_jax.train.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, make_console
+from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks, schedule
 from docrl_jax.train.programs import building_note, chunk_building, compile_programs, still_compiling_line
 
 __all__ = ["check_resume_changes", "check_run_dir", "run"]
@@ -78,10 +78,12 @@ def check_resume_changes(run_dir: Path, config: Config, own: Config | None = Non
 
 class _Display:
     """The progress bar with the latest statistics on a line of their own (they do not fit beside it),
-    or with --no-progress one printed line per chunk (logs, batch jobs)."""
+    or with --no-progress, or when the output is not an interactive terminal (a log file, a pipe, a
+    batch job), one whole printed line per chunk: a live display there is drawn once, at its end, cut
+    at 80 columns, with the next message run onto its last line."""
 
     def __init__(self, console: Console, name: str, total: int, done: int, show_progress: bool):
-        self.console, self.show_progress = console, show_progress
+        self.console, self.show_progress = console, show_progress and console.is_interactive
         self.progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
                                  TextColumn("{task.completed:,.0f}/{task.total:,.0f} env steps"),
                                  TextColumn("{task.fields[sps]}"), TextColumn("{task.fields[eta]}"), console=console)
@@ -297,7 +299,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     evals = Cadence(t_cfg.eval_every, t_cfg.eval_every_minutes)
     saves = Cadence(t_cfg.checkpoint_every, t_cfg.checkpoint_every_minutes)
     # The writer and the checkpoints are closed however the loop ends (a third Ctrl-C too: the process
-    # then leaves without Python's shutdown, docrl_jax.train.loop.exit_process).
+    # then leaves without Python's shutdown, docrl_jax.train.console.exit_process).
     with contextlib.closing(mngr), contextlib.closing(writer), Interrupt(console) as interrupt, display.live(), \
             contextlib.closing(videos):
         newest = mngr.latest_step()

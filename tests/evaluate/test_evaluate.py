@@ -409,9 +409,10 @@ def test_plotting_commands_write_nowhere_unasked(argv, tmp_path, monkeypatch, ca
 def test_an_unwritable_out_is_one_line(tmp_path, capsys, no_compile):
     blocker = tmp_path / "a_file"
     blocker.write_text("")
-    assert cli.main(["--policy", "bba", "--trials", "2", "--out", str(blocker / "out")]) == 2
+    with pytest.raises(SystemExit) as e:   # checked with the other arguments (docrl_jax.arguments.check_out)
+        cli.main(["--policy", "bba", "--trials", "2", "--out", str(blocker / "out")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and str(blocker) in err[0] and "Not a directory" in err[0]
+    assert e.value.code == 2 and err == [f"python -m docrl_jax.evaluate: error: --out {blocker / 'out'}: Not a directory"]
 
 
 def test_aggregate_seeds_pools_exactly():

@@ -137,7 +137,7 @@ def test_settings_and_host():
     (["--run", str(TRAINED / "td3_lstm"), str(TRAINED / "sac_lstm")], "hold different configs"),
     (["--run", str(TRAINED / "td3_lstm"), "--run", str(TRAINED / "td3_lstm")], "give each method its own --label"),
     (["--policy", "bba"], "--out DIR"),
-    (["--policy", "bba", "--out", "no/such/dir"], "the parent folder"),
+    (["--policy", "bba", "--out", "no/such/dir"], "--out no/such/dir: No such file or directory"),
 ])
 def test_bad_input_is_one_line_before_compiling(argv, message, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
@@ -157,7 +157,7 @@ def test_command_name_and_out_under_a_file(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "docrl_jax.robustness", "--policy", "bba", "--out",
                            str(tmp_path / "file" / "res")], capture_output=True, text=True)
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines()[-1].endswith("is not a folder"), proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].endswith("/file/res: Not a directory"), proc.stderr
     listed = subprocess.run([sys.executable, "-m", "docrl_jax.robustness", "--list"], capture_output=True, text=True)
     assert listed.returncode == 0 and "wind_gusts" in listed.stdout and "dr_current_speed=(0.5, 0.5)" in listed.stdout
 

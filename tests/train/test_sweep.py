@@ -14,7 +14,7 @@ import pytest
 import yaml
 from _trainer_common import EASY, finished_run, tmp_dir
 
-from docrl_jax.train import cli, sweep, sweep_report
+from docrl_jax.train import cli, sweep, sweep_cli, sweep_report
 from docrl_jax.errors import ConfigError, RunDirError
 
 
@@ -42,12 +42,12 @@ def test_grid_refuses_unknown_and_unsweepable_keys_before_compiling(tmp_path):
     with pytest.raises(ConfigError, match="combination agent.tau=2.*must be in \\(0, 1\\]"):
         sweep.plan(_easy_yaml(), [], {"agent.tau": [0.1, 2.0]}, 1)
     d = tmp_path / "s"
-    assert sweep.main(["--config", _easy_yaml(), "--grid", "agent.nope=1,2", "--run-dir", str(d)]) == cli.EXIT_CONFIG
-    assert sweep.main(["--run-dir", str(d), "--resume"]) == cli.EXIT_CONFIG
+    assert sweep_cli.main(["--config", _easy_yaml(), "--grid", "agent.nope=1,2", "--run-dir", str(d)]) == cli.EXIT_CONFIG
+    assert sweep_cli.main(["--run-dir", str(d), "--resume"]) == cli.EXIT_CONFIG
     assert not d.exists()  # nothing written, nothing compiled
     d.mkdir()
     (d / sweep.SWEEP_FILE).write_text("{}")
-    assert sweep.main(["--config", _easy_yaml(), "--grid", "agent.tau=0.1", "--run-dir", str(d)]) == cli.EXIT_CONFIG
+    assert sweep_cli.main(["--config", _easy_yaml(), "--grid", "agent.tau=0.1", "--run-dir", str(d)]) == cli.EXIT_CONFIG
     with pytest.raises(RunDirError, match="is a sweep.*cannot be resumed"):
         cli._resolve(cli.build_parser().parse_args(["--run-dir", str(d), "--resume"]))
     assert cli.main(["--run-dir", str(d), "--resume"]) == cli.EXIT_CONFIG
@@ -122,7 +122,7 @@ def _sweep(*grid: str, seeds: int = 1) -> Path:
             "--run-dir", str(d), "--compile-cache", "off"]
     for g in grid:
         argv += ["--grid", g]
-    assert sweep.main(argv) == cli.EXIT_OK
+    assert sweep_cli.main(argv) == cli.EXIT_OK
     return d
 
 

@@ -1,0 +1,82 @@
+"""`docrl` (docrl_jax.commands, also `python -m docrl_jax`): each subcommand is its module's command
+given the rest of the command line; the version; a mistyped subcommand is one line naming the nearest."""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from docrl_jax import __version__, commands
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _docrl(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "docrl_jax", *argv], capture_output=True, text=True, cwd=ROOT)
+
+
+def test_the_console_script_is_the_same_entry_as_python_m():
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts == {"docrl": "docrl_jax.commands:entry"}
+    assert "entry()" in (ROOT / "docrl_jax" / "__main__.py").read_text()
+    for name, command in commands.COMMANDS.items():   # every subcommand's module has the command's main
+        assert callable(importlib.import_module(command.module).main), name
+
+
+def test_version_and_a_mistyped_subcommand():
+    out = _docrl("--version")
+    assert out.returncode == 0 and out.stdout.split() == ["python", "-m", "docrl_jax", __version__]
+    out = _docrl("evalute", "--policy", "bba")
+    assert out.returncode == 2 and out.stdout == ""
+    assert out.stderr.splitlines() == [
+        "python -m docrl_jax: error: unknown subcommand 'evalute'; did you mean 'evaluate'? "
+        f"(valid: {', '.join(commands.COMMANDS)})"]
+
+
+def test_a_subcommand_gets_the_rest_of_the_command_line(capsys):
+    """`docrl evaluate ARGS` is `python -m docrl_jax.evaluate ARGS`: the same checks, the same line."""
+    with pytest.raises(SystemExit) as e:
+        commands.main(["evaluate", "--policy", "nope"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and len(err) == 1
+    assert err[0].startswith("python -m docrl_jax.evaluate: error: --policy 'nope': unknown policy")
+    with pytest.raises(SystemExit) as e:
+        commands.main([])
+    assert e.value.code == 2 and "give a subcommand: train, evaluate" in capsys.readouterr().err
+
+
+def test_a_mistyped_choice_names_the_nearest(capsys):
+    with pytest.raises(SystemExit) as e:
+        commands.main(["tanks", "chek"])
+    assert e.value.code == 2 and capsys.readouterr().err.splitlines() == [
+        "python -m docrl_jax.tanks: error: argument ACTION: invalid choice: 'chek' (choose from 'list', 'check'); "
+        "did you mean 'check'?"]
+
+
+def test_tanks_check_prints_one_line_per_file(tmp_path, capsys):
+    (tmp_path / "picture.gif").write_bytes(b"GIF89a\x01\x00\x01\x00\x80\xff\x00\x00\x00\x00")
+    (tmp_path / "words.yaml").write_text("just some words\n")
+    (tmp_path / "broken.json").write_text("{\"floor_top\": \n")
+    files = [str(tmp_path / n) for n in ("picture.gif", "words.yaml", "broken.json", "missing.yaml")]
+    assert commands.main(["tanks", "check", *files]) == 2
+    out = capsys.readouterr()
+    assert out.out.splitlines() == [
+        f"invalid: {files[0]}: not a text file; a tank file is YAML or JSON text (docs/TANKS.md)",
+        f"invalid: {files[1]}: a tank file holds a mapping of keys (name, description, floor_top, air, water, solids), "
+        "not str",
+        f"invalid: {files[2]}: not valid JSON at line 2: Expecting value",
+        f"invalid: {files[3]}: no such tank file"]
+    assert out.err.strip() == "4 of 4 files are not valid tanks (docs/TANKS.md)"
+
+
+def test_tanks_list_names_every_packaged_tank(capsys):
+    from docrl_jax.envs import tanks
+    assert commands.main(["tanks", "list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in lines[:-1]] == tanks.packaged_names()
+    assert lines[-1].startswith(f"{len(tanks.packaged_names())} tanks in ")
