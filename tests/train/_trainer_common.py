@@ -26,8 +26,11 @@ EASY = {
             "max_episode_steps": 100, "goal_water_fraction": 0.0, "start_water_fraction": 0.0},
     "agent": {"algo": "td3", "actor": "lstm", "actor_hidden": [32], "critic_hidden": [64, 64], "tau": 0.01},
     "replay": {"buffer_size": 32000, "batch_size": 64, "seq_len": 4, "burn_in": 2},
+    # Evaluations and checkpoints by env steps alone: the wall-clock cadences (10 minutes by default) would
+    # add rows and checkpoints to a run that a busy machine slows past them.
     "train": {"total_env_steps": 16000, "start_steps": 2000, "updates_per_step": 2, "log_every": 4000,
-              "eval_every": 8000, "eval_episodes": 64, "checkpoint_every": 8000},
+              "eval_every": 8000, "eval_episodes": 64, "checkpoint_every": 8000,
+              "eval_every_minutes": 1e9, "checkpoint_every_minutes": 1e9},
 }
 
 
