@@ -224,7 +224,13 @@ class Tiered:
 
     def __init__(self, first: Future, full: Future | None = None):
         self.first, self.full, self.current, self.quick_calls, self.ready_at = first, full, None, 0, None
-        first.add_done_callback(lambda _: setattr(self, "ready_at", time.time()))
+        first.add_done_callback(lambda _: self._mark_ready())
+
+    def _mark_ready(self) -> None:
+        # Also called once a call has the first build: a future wakes the threads waiting for its result
+        # before it runs its done callbacks, so the callback may come after that call.
+        if self.ready_at is None:
+            self.ready_at = time.time()
 
     @property
     def compiling(self) -> bool:
@@ -236,6 +242,7 @@ class Tiered:
             self.current, self.full = self.full.result(), None   # a failed compile raises here
         elif self.current is None:
             self.current = self.first.result()
+            self._mark_ready()
         self.quick_calls += self.full is not None
         return self.current(*args)
 

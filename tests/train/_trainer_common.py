@@ -12,7 +12,11 @@ from __future__ import annotations
 import copy
 import functools
 import tempfile
+import threading
+from concurrent import futures
 from pathlib import Path
+
+import pytest
 
 from docrl_jax.config import config_from_dict
 
@@ -22,8 +26,11 @@ EASY = {
             "max_episode_steps": 100, "goal_water_fraction": 0.0, "start_water_fraction": 0.0},
     "agent": {"algo": "td3", "actor": "lstm", "actor_hidden": [32], "critic_hidden": [64, 64], "tau": 0.01},
     "replay": {"buffer_size": 32000, "batch_size": 64, "seq_len": 4, "burn_in": 2},
+    # Evaluations and checkpoints by env steps alone: the wall-clock cadences (10 minutes by default) would
+    # add rows and checkpoints to a run that a busy machine slows past them.
     "train": {"total_env_steps": 16000, "start_steps": 2000, "updates_per_step": 2, "log_every": 4000,
-              "eval_every": 8000, "eval_episodes": 64, "checkpoint_every": 8000},
+              "eval_every": 8000, "eval_episodes": 64, "checkpoint_every": 8000,
+              "eval_every_minutes": 1e9, "checkpoint_every_minutes": 1e9},
 }
 
 
@@ -60,3 +67,22 @@ def tmp_dir(name: str) -> Path:
     path = _TMP / name
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+# How long a test waits for what its own steps bring about (a build it releases, a line the command prints
+# after a Ctrl-C, the command quitting) before it fails as a time-out. Every such wait ends by that event;
+# only a program that hangs, or is broken so that the event never comes, waits this long, on any machine.
+WAIT_S = 600
+
+
+def wait_for(event: threading.Event, what: str) -> None:
+    """Returns once `event` is set; fails the test as a time-out after WAIT_S."""
+    if not event.wait(WAIT_S):
+        pytest.fail(f"timed out after {WAIT_S} s waiting for {what}")
+
+
+def result_of(future: futures.Future, what: str):
+    """`future`'s result (or its exception, raised) once it is done; fails the test as a time-out after WAIT_S."""
+    if not futures.wait([future], WAIT_S).done:
+        pytest.fail(f"timed out after {WAIT_S} s waiting for {what}")
+    return future.result()

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 import threading
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import jax
 import jax.numpy as jnp
@@ -15,7 +15,7 @@ import pytest
 
 from docrl_jax.train import program_store, programs
 
-from _trainer_common import easy_config
+from _trainer_common import easy_config, result_of, wait_for
 
 
 def _leaves_equal(a, b) -> bool:
@@ -74,7 +74,11 @@ def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_sto
     monkeypatch.setattr(programs, "_COMPILED", {})
     monkeypatch.setattr(program_store, "folder", lambda: tmp_path)
     release, compile_full = threading.Event(), programs._compile_and_store
-    monkeypatch.setattr(programs, "_compile_and_store", lambda *a, **k: release.wait(60) and compile_full(*a, **k))
+
+    def held_until_released(*args, **kwargs):   # in the full build's thread: its failure is the future's
+        wait_for(release, "the test to release the full build's compile")
+        return compile_full(*args, **kwargs)
+    monkeypatch.setattr(programs, "_compile_and_store", held_until_released)
     before = jax.config.jax_enable_compilation_cache   # a persistent-cache hit could not be stored on a CPU
     jax.config.update("jax_enable_compilation_cache", False)
     try:
@@ -84,7 +88,7 @@ def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_sto
         state, _ = tiered.chunk(plain.init(keys, total))   # the quick build ran it; the full one is not stored yet
         assert tiered.chunk.quick_calls == 1 and not (tmp_path / f"{names['chunk']}.bin").exists()
         release.set()
-        tiered.chunk.full.result(timeout=120)
+        result_of(tiered.chunk.full, "the full build's compile")
         expected = plain.chunk(jax.tree.map(jnp.copy, state))
         taken_over = tiered.chunk(state)
     finally:
@@ -96,12 +100,26 @@ def test_a_tiered_start_runs_the_quick_chunk_until_the_full_one_is_ready_and_sto
 
 
 def test_tiered_waits_for_its_first_build_then_switches_to_the_full_one_and_raises_failures():
-    quick_calls, full_calls = [], []
-    first, full = Future(), Future()
+    quick_calls, full_calls, asked = [], [], threading.Event()
+
+    class Watched(Future):   # says when a call asks for the quick build
+        def result(self, timeout=None):
+            asked.set()
+            return super().result(timeout)
+
+    first, full = Watched(), Future()
     chunk = programs.Tiered(first, full)
     assert chunk.compiling and chunk.ready_at is None
-    threading.Timer(0.2, first.set_result, [lambda s: quick_calls.append(s) or s]).start()
-    assert chunk(1) == 1 and chunk.ready_at is not None   # the first call waited for the quick build
+    caller = ThreadPoolExecutor(1)
+    try:
+        call = caller.submit(chunk, 1)
+        wait_for(asked, "the first call to ask for the quick build")
+        assert not call.done() and chunk.ready_at is None   # it waits for the build, which is not there yet
+        first.set_result(lambda s: quick_calls.append(s) or s)
+        assert result_of(call, "the first call") == 1 and chunk.ready_at is not None
+    finally:
+        first.cancel()   # nothing once the build is set; else (a failed test) ends the call's wait
+        caller.shutdown()
     assert chunk(2) == 2 and chunk.quick_calls == 2 and chunk.compiling
     full.set_result(lambda s: full_calls.append(s) or -s)
     assert not chunk.compiling
@@ -148,7 +166,7 @@ def test_a_tiered_start_with_evaluation_lanes_returns_before_its_chunk_and_compi
         started.append(f"{name} quick" if quick else name)
         compiled_with[name] = options
         if quick:
-            release_quick.wait(60)
+            wait_for(release_quick, "the test to release the quick chunk's compile")
         fake = lambda *args: name   # noqa: E731
         fake.out_info = lowered.out_info
         return fake, True
@@ -159,7 +177,8 @@ def test_a_tiered_start_with_evaluation_lanes_returns_before_its_chunk_and_compi
     try:
         progs, _ = programs.compile_programs(config, devices, tiered=True)
         # Returned with the quick chunk still compiling: a run initialises meanwhile.
-        assert progs.chunk.compiling and progs.chunk.ready_at is None and progs.init() == "jit_init"
+        assert progs.chunk.compiling and progs.chunk.ready_at is None, "the quick compile's wait timed out"
+        assert progs.init() == "jit_init"
         assert isinstance(progs.evaluate, programs.Tiered) and "jit_evaluate" not in started
     finally:
         release_quick.set()

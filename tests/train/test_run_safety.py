@@ -15,12 +15,13 @@ import shutil
 import signal
 import threading
 from concurrent.futures import Future
+from pathlib import Path
 from unittest.mock import patch
 
 import jax
 import jax.numpy as jnp
 import pytest
-from _trainer_common import easy_config, finished_run, tmp_dir
+from _trainer_common import WAIT_S, easy_config, finished_run, tmp_dir
 
 from docrl_jax import checkpoint
 from docrl_jax.errors import RunDirError
@@ -91,43 +92,69 @@ def test_progress_line_says_no_eta_before_learning_then_one():
 
 
 # ------------------------------------------------------------------ Ctrl-C
+class _Computing:
+    """A chunk's result still being computed until the test calls `finish`: `jax.block_until_ready` (what
+    `loop.wait`'s helper thread runs) blocks on it until then, or WAIT_S at most (then `timed_out`)."""
+
+    def __init__(self):
+        self.finished, self.timed_out = threading.Event(), False
+
+    def finish(self):
+        self.finished.set()
+
+    def is_ready(self) -> bool:
+        return self.finished.is_set()
+
+    def block_until_ready(self):
+        self.timed_out = not self.finished.wait(WAIT_S) or self.timed_out
+        return self
+
+
 def test_ctrl_c_is_answered_while_the_device_still_computes():
-    """The message comes while the chunk runs, not when it ends: `wait` returns to Python between polls."""
-    said, pending = [], {}
+    """The message comes while the chunk runs, not when it ends: `wait` returns to Python between polls.
+    The chunk's result (`_Computing`) is ready only once the message is out."""
+    said, computing = [], _Computing()
 
     class Recorder:
         def print(self, text):
-            said.append((text, pending["y"].is_ready()))
+            said.append((text, computing.is_ready()))
+            computing.finish()
 
-    @jax.jit
-    def slow(x):
-        return jax.lax.fori_loop(0, 20_000, lambda i, v: jnp.sin(v @ v.T) / 64.0, x)
-
-    slow(jnp.ones((64, 64))).block_until_ready()  # compiled
     with loop.Interrupt(Recorder()) as interrupt:
-        pending["y"] = slow(jnp.ones((64, 64)))
         os.kill(os.getpid(), signal.SIGINT)
-        loop.wait(pending["y"], interrupt)
+        result = loop.wait({"metrics": jnp.arange(3.0), "computing": computing}, interrupt)
+    assert not computing.timed_out, f"timed out after {WAIT_S} s waiting for the Ctrl-C's message during the chunk"
     assert interrupt.requested and len(said) == 1 and "after the running chunk" in said[0][0]
     assert said[0][1] is False   # printed while the device was still computing
+    assert result["computing"] is computing and list(result["metrics"]) == [0.0, 1.0, 2.0]
 
 
 def test_a_ctrl_c_while_the_chunk_still_compiles_is_answered_at_once():
-    said, first = [], Future()
+    """The message comes while the chunk's first build compiles; the build is done only after it, from
+    another thread, and `wait_for_build` returns once it is."""
+    said, first, answered = [], Future(), threading.Event()
 
     class Recorder:
         def print(self, text):
             said.append((text, first.done()))
+            answered.set()
 
     class Building:   # a cold start's chunk whose quick build compiles (docrl_jax.train.programs.Tiered)
         pass
 
     chunk = Building()
     chunk.first = first
-    threading.Timer(1.0, first.set_result, [None]).start()
+
+    def compile_once_answered():   # or after WAIT_S unanswered, so that the test ends and says why
+        answered.wait(WAIT_S)
+        first.set_result(None)
+
+    compiler = threading.Thread(target=compile_once_answered, daemon=True)
+    compiler.start()
     with loop.Interrupt(Recorder()) as interrupt:
         os.kill(os.getpid(), signal.SIGINT)
         loop.wait_for_build(chunk, interrupt)
+    assert answered.is_set(), f"timed out after {WAIT_S} s waiting for the Ctrl-C's message while the chunk compiled"
     assert first.done() and interrupt.requested and len(said) == 1 and said[0][1] is False
 
 
@@ -169,7 +196,7 @@ def test_ctrl_c_once_or_twice_saves_after_the_chunk(monkeypatch, presses):
     assert ("still stopping" in text) == (presses == 2)
     if presses == 2:   # an estimate from chunk 2's time: "about N s more", or "any moment" where chunks take
         # under a second (4,000 env steps on a fast CPU; the arithmetic has its own test above, on a set clock)
-        assert re.search(r"still stopping after the running chunk \((about [1-9]\d* s more|any moment: it has run "
+        assert re.search(r"still stopping after the running chunk \((about [^)]+ more|any moment: it has run "
                          r"[^,]+, chunks take about [^)]+)\)", text), text
     assert _steps(d)[-1] == 4000 * chunk   # (checkpoint_every 8,000 adds 8,000 before chunk 3's)
     # Not wrapped at 80 columns in a log file: the resume command is on one line.
@@ -251,13 +278,14 @@ def test_a_launch_prints_a_short_summary_and_the_run_directory_holds_the_full_co
 
 def test_a_third_ctrl_c_quits_the_command_at_once_with_exit_130_and_the_checkpoints_kept(tmp_path):
     """The command, in a process of its own, loading this process's compiled programs from a program
-    store (seconds, no compile): three Ctrl-Cs while its second chunk computes. The process leaves
-    at once: exit 130, no C++ abort (a helper thread was inside XLA), the checkpoints kept; the second
-    press says that the running chunk's length is not known yet (the first chunk learned on only some of
-    its iterations)."""
+    store (seconds, no compile), its second chunk held computing (tests/train/_held_chunk_command.py): three
+    Ctrl-Cs during it, each sent once the command has answered the one before. The process leaves at once:
+    exit 130, no C++ abort (`wait`'s helper thread is inside XLA), the first chunk's checkpoint kept; the
+    second press says that the running chunk's length is not known yet (the first chunk learned on only
+    some of its iterations)."""
+    import queue
     import subprocess
     import sys
-    import time
 
     import yaml
 
@@ -273,31 +301,56 @@ def test_a_third_ctrl_c_quits_the_command_at_once_with_exit_130_and_the_checkpoi
         assert program_store.save(cache / program_store.FOLDER, name, getattr(compiled, what)), what
     (tmp_path / "easy.yaml").write_text(to_yaml(config))
     d = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-u", "-m", "docrl_jax.train", "--config", str(tmp_path / "easy.yaml"),
-                             "--run-dir", str(d), "--compile-cache", str(cache), "--no-progress"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    command = [sys.executable, "-u", str(Path(__file__).with_name("_held_chunk_command.py")), "--config",
+               str(tmp_path / "easy.yaml"), "--run-dir", str(d), "--compile-cache", str(cache), "--no-progress"]
+    with open(tmp_path / "stderr", "w") as err_file:
+        proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=err_file, stdin=subprocess.DEVNULL, text=True)
+    lines: queue.Queue = queue.Queue()   # the command's output lines, then None at its end
+
+    def read():
+        for line in proc.stdout:
+            lines.put(line)
+        lines.put(None)
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    out: list[str] = []
+
+    def printed(text: str) -> str:
+        """The next line of the command's output that holds `text` (reading the ones before it)."""
+        while True:
+            try:
+                line = lines.get(timeout=WAIT_S)
+            except queue.Empty:
+                pytest.fail(f"timed out after {WAIT_S} s waiting for the command to print {text!r}: "
+                            f"{''.join(out)[-2000:]}")
+            if line is None:
+                pytest.fail(f"the command ended before printing {text!r}: {''.join(out)[-2000:]}")
+            out.append(line)
+            if text in line:
+                return line
+
     try:
-        lines = []
-        for line in proc.stdout:            # until the first chunk's line: the second chunk is running
-            lines.append(line)
-            if " steps/s " in line:
-                break
-        for _ in range(3):   # each message is printed within 0.1 s
-            proc.send_signal(signal.SIGINT)
-            time.sleep(0.15)
-        out, err = proc.communicate(timeout=60)
+        printed(" steps/s ")                  # the first chunk's line: the second chunk is running
+        proc.send_signal(signal.SIGINT)
+        assert printed("stopping after the running chunk").startswith("stopping")
+        proc.send_signal(signal.SIGINT)
+        second = printed("still stopping after the running chunk")
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=WAIT_S)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"timed out after {WAIT_S} s waiting for the command to quit after the third Ctrl-C")
+        reader.join()                          # its output ends with the process
     finally:
         proc.kill()
-    out = "".join(lines) + out
+    while (line := lines.get()) is not None:
+        out.append(line)
+    out, err = "".join(out), (tmp_path / "stderr").read_text()
     assert "terminate called" not in err and proc.returncode == 130, (proc.returncode, out[-2000:], err[-2000:])
     # The first chunk learned on only some iterations: the second's length is not known yet.
-    assert "still stopping after the running chunk (it has run 0 s; no estimate" in out
-    # The first chunk's checkpoint; on a fast CPU the second chunk (~0.3 s) can end between the presses, and
-    # the second press then saves its own before the third quits: the message names the newest either way.
-    newest = _steps(d)[-1]
-    assert _steps(d) in ([4000], [4000, 8000]), _steps(d)
-    assert f"quit without saving; newest checkpoint: env step {newest:,}" in out
-    assert load_policy(d).source.endswith(f"checkpoint {newest}")
+    assert re.search(r"\(it has run [^;]+; no estimate", second), second
+    assert _steps(d) == [4000] and "quit without saving; newest checkpoint: env step 4,000" in out, out[-2000:]
+    assert load_policy(d).source.endswith("checkpoint 4000")
     assert yaml.safe_load((d / "config.yaml").read_text())["name"] == "easy"
 
 
