@@ -89,3 +89,9 @@ def track_from_states(states: Any) -> Track:
                  vertical_ranges=np.asarray(info["vertical_ranges"]),
                  underwater=np.asarray(info["underwater"]), step=np.asarray(info["step"]),
                  distance=np.asarray(info["distance"]), status=[_status_of(info, t) for t in range(len(qpos))])
+
+
+def frame_steps(n: int, every: int, last: bool = True) -> list[int]:
+    """The entries of an n-entry track a video draws: every `every`-th, and the last when `last`."""
+    idx = list(range(0, n, max(1, int(every))))
+    return idx + [n - 1] if last and idx[-1] != n - 1 else idx

@@ -35,7 +35,8 @@ import numpy as np
 from docrl_jax.envs import sensors
 from docrl_jax.envs.geometry import TANK_HALF_WIDTH
 from docrl_jax.envs.params import EnvParams
-from docrl_jax.envs.render_tracks import CAMERAS, Track, overlay_lines, track_from_infos, track_from_states
+from docrl_jax.envs.render_tracks import (CAMERAS, Track, frame_steps, overlay_lines, track_from_infos,
+                                          track_from_states)
 from docrl_jax.errors import RenderError, short_reason
 
 # What is drawn of a trajectory (`Track`) and its builders live in docrl_jax.envs.render_tracks; they
@@ -147,10 +148,7 @@ class Renderer:
     # ------------------------------------------------------------------ frames
     def render_track(self, track: Track, every: int = 1, last: bool = True) -> np.ndarray:
         """Frames (F, H, W, 3) uint8 of every `every`-th entry of `track` (and of its last when `last`)."""
-        n = len(track)
-        idx = list(range(0, n, max(1, int(every))))
-        if last and idx[-1] != n - 1:
-            idx.append(n - 1)
+        idx = frame_steps(len(track), every, last)
         cam_yaw = self._smooth_yaw(track.qpos)
         frames = np.empty((len(idx), self.height, self.width, 3), np.uint8)
         for k, t in enumerate(idx):

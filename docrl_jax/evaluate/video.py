@@ -362,7 +362,11 @@ def _render(args, cfg: dict) -> int:
         parts = []
         for i, track in enumerate(tracks(trials, env.control_dt)):
             track.title = f"{label}  {where[i]} {name}  trial {i + 1}/{args.trials}{of}"
-            parts.append(render_frames(renderers[scene[i]], [track], args.every, args.fps))
+            frames, durations = render_frames(renderers[scene[i]], [track], args.every, args.fps)
+            if args.guide == "sensors":   # what the vehicle knows, beside what it does
+                from docrl_jax.envs import belief_view
+                frames = belief_view.beside(frames, env.params, track, args.every)
+            parts.append((frames, durations))
         frames, durations = np.concatenate([f for f, _ in parts]), [d for _, ds in parts for d in ds]
         t2 = time.time()
     cfg["out"].parent.mkdir(parents=True, exist_ok=True)
