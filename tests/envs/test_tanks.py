@@ -168,8 +168,8 @@ REFUSED = {
                             _solid("wall_b", (0.0, 2.95, 2.0), (0.15, 2.05, 3.4))]},
         ["no route from the air region to the water region", "the widest way keeps at most 0.40 m from the solids",
          "beside solid 'wall_b' and solid 'wall_a'", "a gap must be >= ~1.1 m wide"]),
-    # A goal 0.3 m above the floor and goal_clearance (1.0 m) under a slab: the free cells keep 0.55 m from
-    # both, so none lies between them (1.3 m apart) on the grid, nor within the arrival distance of it.
+    # A goal 0.3 m above the floor and goal_clearance (1.0 m) under a slab: a free cell keeps 0.55 m from both,
+    # and the band that does, z -1.24 .. -1.04, holds no cell centre: no free cell within the arrival distance.
     "a goal under a slab near the floor": (
         {**TANK, "floor_top": -1.79, "water": [2.0, 0.0, -1.49],
          "solids": [_solid("slab", (2.0, 0.0, -0.39), (1.5, 1.5, 0.1))]},
