@@ -10,10 +10,10 @@
 docs/TANKS.md lists every key and rule. `load` checks a file against those rules and raises `TankError`
 (one line: the file, the solid or region, the problem, what is valid) before the env compiles anything: the
 longest check, `flyability.check` (a route both ways between the air and water regions), compiles once
-per parameter set (seconds on a CPU; then ~0.2 s a tank); a refused route compiles `flyability.blockage`
-once more (~3 s) to say where the way is too narrow. `load_set` stacks a set of tanks (a file, a
-folder, a packaged tank's name, or "gallery") for `HUAUVEnv`; `save` writes any layout (e.g.
-`layouts.held_out(i, p)`) as a tank file to edit and fly again.
+per parameter set (seconds on a CPU; then ~0.2 s a tank); why a tank cannot be flown is worded by
+docrl_jax/envs/tank_reasons.py (its first refused route compiles `flyability.blockage`, ~3 s). `load_set`
+stacks a set of tanks (a file, a folder, a packaged tank's name, or "gallery") for `HUAUVEnv`; `save`
+writes any layout (e.g. `layouts.held_out(i, p)`) as a tank file to edit and fly again.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from docrl_jax.envs import geometry, layouts
+from docrl_jax.envs import geometry, layouts, tank_reasons
 from docrl_jax.envs.params import BOX_SLOTS, CAPSULE_SLOTS, EnvParams
 from docrl_jax.resources import resource_dir
 from docrl_jax.schema import did_you_mean
@@ -203,15 +203,6 @@ def _analyse(layout: layouts.Layout, p: EnvParams):
 _ANALYSE: dict = {}
 
 
-def _by_distance(layout, names, point) -> list[tuple[float, str]]:
-    """(distance m, what) of the floor, the tank's walls and every solid from `point`, nearest first."""
-    solids, q = layouts.obstacles(layout), jnp.asarray(point, jnp.float32)
-    slots = np.concatenate(jax.device_get([geometry.box_distances(solids, q), geometry.capsule_distances(solids, q)]))
-    wall = geometry.TANK_HALF_WIDTH - float(np.abs(point[:2]).max())
-    return sorted([(float(d), f"solid {n!r}") for d, n in zip(slots, names) if n is not None]
-                  + [(float(point[2] - layouts.floor_top(layout)), "the floor"), (wall, "the tank's wall")])
-
-
 def _free_point(layout, points, gaps, names, p: EnvParams, medium: str, where: str) -> np.ndarray:
     """A point of a region the env's sampler accepts (>= goal_clearance from every obstacle): of a grid of
     33 points a side over the region, the free one nearest its centre; else `TankError` naming the solid
@@ -220,7 +211,7 @@ def _free_point(layout, points, gaps, names, p: EnvParams, medium: str, where: s
     if ok.any():
         centre = points.mean(0)
         return points[ok][np.argmin(np.linalg.norm(points[ok] - centre, axis=-1))]
-    gap, solid = next(found for found in _by_distance(layout, names, points.mean(0)) if found[1].startswith("solid"))
+    gap, solid = next(x for x in tank_reasons.by_distance(layout, names, points.mean(0)) if x[1].startswith("solid"))
     if gap < 0:
         why = f"the {medium} region lies inside {solid}"
     else:
@@ -232,50 +223,6 @@ def _free_point(layout, points, gaps, names, p: EnvParams, medium: str, where: s
 
 def _stack(*trees):
     return jax.tree.map(lambda *x: jnp.stack(x), *trees)
-
-
-def _listed(whats) -> str:
-    return " and ".join(whats) if len(whats) < 3 else ", ".join(whats[:-1]) + " and " + whats[-1]
-
-
-def _check_routes(layout, route, names, p: EnvParams, where: str) -> None:
-    """`TankError` naming why a trip is not flyable: a region with no free cell within the arrival distance
-    of its points (flyability's region cells), else the narrowest place of the widest way between them."""
-    from docrl_jax.envs import flyability
-    clear, reach, step = flyability.clearance(p), p.arrival_distance, flyability.GRID_STEP
-    at = lambda point: np.round(np.asarray(point, np.float64), 2).tolist()  # noqa: E731
-    for i, medium in enumerate(_REGION_NAMES):
-        if route.start_cells[i] == 0:     # trip i starts in region i
-            (lo, hi), point = np.asarray(layout.regions[i]), np.asarray(layout.clear[i])
-            found = _by_distance(layout, names, point)
-            lies = _listed([f"{d:.2f} m {'above' if what == 'the floor' else 'from'} {what}"
-                            for d, what in [x for x in found[:2] if x[0] < clear + reach] or found[:1]])
-            why = (f"at {at(point)} lies {lies}: no free cell within the arrival distance {reach} m of it"
-                   if np.array_equal(lo, hi) else f"{at(lo)} .. {at(hi)} has no point within the arrival distance "
-                   f"{reach} m of a free cell (its point {at(point)} lies {lies})")
-            raise TankError(f"{where}: the {medium} region {why}; free cells keep {clear:.2f} m from every solid, "
-                            "a start or goal joins them within the arrival distance (move the region off the solid)")
-    for trip, (start, goal) in enumerate((("air", "water"), ("water", "air"))):
-        if route.flyable[trip]:
-            continue
-        if p not in _BLOCKAGE:
-            _BLOCKAGE[p] = jax.jit(lambda lay, d: flyability.blockage(lay, p, d))
-        blocked = jax.device_get(_BLOCKAGE[p](layout, trip))
-        keeps = float(blocked.clearance)
-        near = [what for d, what in _by_distance(layout, names, blocked.narrowest) if d <= max(keeps, 0.0) + step]
-        if keeps < step * np.sqrt(3) / 2:    # a move between two cells may jump a solid this thin
-            why = (f"{_listed(near[:4])} close{'s' if len(near) == 1 else ''} every way from its point "
-                   f"{at(blocked.start)} (the widest way crosses at {at(blocked.narrowest)})")
-        else:
-            why = (f"from its point {at(blocked.start)} the widest way keeps at most {keeps:.2f} m from the solids, "
-                   f"at {at(blocked.narrowest)} beside {_listed(near[:4])} (a gap of ~{2 * keeps:.1f}-"
-                   f"{2 * keeps + step:.1f} m)")
-        raise TankError(f"{where}: no route from the {start} region to the {goal} region: {why}; a route keeps "
-                        f"{clear:.2f} m from every solid: a gap must be >= ~{2 * clear:.1f} m wide, "
-                        f"{2 * clear + step:.2f} m wherever it lies on the {step} m grid")
-
-
-_BLOCKAGE: dict = {}   # params -> the compiled `flyability.blockage`, compiled at a tank's first refusal
 
 
 def _parse(path: Path, p: EnvParams) -> layouts.Layout:
@@ -327,7 +274,9 @@ def _parse(path: Path, p: EnvParams) -> layouts.Layout:
     route, points, gaps = jax.device_get(_ANALYSE[p](layout))
     clear = [_free_point(layout, points[i], gaps[i], names, p, m, where) for i, m in enumerate(_REGION_NAMES)]
     layout = layout.replace(clear=jnp.asarray(np.stack(clear), jnp.float32))
-    _check_routes(layout, route, names, p, where)
+    why = tank_reasons.route_refusal(layout, route, names, p)
+    if why:
+        raise TankError(f"{where}: {why}")
     return layout
 
 
