@@ -1,13 +1,17 @@
 """The privileged route-follower (docrl_jax/baselines/route.py) in a hand-made tank: a wall across the
 straight line from start to goal, open beyond its end. Following the tank's route field it flies round the
 wall's end and arrives; given a straight-line field instead (the tank as if empty) it flies into the wall. The
-evaluator's rollout, planning each trial from its initial state, flies the very same flight."""
+evaluator's rollout, planning each trial from its initial state, flies the very same flight. In an empty
+tank file whose water goal lies 0.3 m above the floor (the paper's; below every free cell) it arrives too."""
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import docrl_jax.envs as envs
 from docrl_jax.baselines import route
+from docrl_jax.envs import flyability as fly
 from docrl_jax.envs import guidance, tanks
 from docrl_jax.evaluate import rollout
 
@@ -24,6 +28,13 @@ solids:
     name: wall
     center: [0.0, {(-5.1 + WALL_END_Y) / 2}, 1.95]
     half_extents: [0.15, {(WALL_END_Y + 5.1) / 2}, 3.45]
+"""
+
+PAPER_GOAL_TANK = """
+name: paper_goal
+floor_top: -1.5
+air: [-1.5, -3.0, 1.0]
+water: [1.5, -3.0, -1.2]
 """
 
 
@@ -72,3 +83,26 @@ def test_the_rollout_plans_each_trial_as_the_layout_plan(flights):
     mine, reference = flights[1]["planned_by_rollout"], flights[1]["route"]
     assert mine["success"][0]
     np.testing.assert_array_equal(mine["positions"], reference["positions"])
+
+
+def test_a_goal_near_the_floor_is_reached(tmp_path):
+    """The tank file's own goal 0.3 m above the floor: the env draws it (its tank set's `draw_layout`, then
+    `sample_goal`), the plan's goal cells lie above it within the arrival distance, the follower arrives."""
+    path = tmp_path / "paper_goal.yaml"
+    path.write_text(PAPER_GOAL_TANK)
+    env = rollout.make_eval_env(0, MAX_STEPS, start_water_fraction=0.0, goal_water_fraction=1.0)
+    start, goal = np.array([-1.5, -3.0, 1.0]), np.array([1.5, -3.0, -1.2])
+    in_tank = envs.make(tank=path, wind=False, goal_water_fraction=1.0)
+    drawn = jax.jit(lambda k: in_tank.sample_goal(k, jnp.asarray(start, jnp.float32), in_tank.draw_layout(k)))
+    np.testing.assert_allclose(np.asarray(drawn(jax.random.PRNGKey(1))), goal, atol=1e-6)
+    layout = jax.tree.map(lambda x: x[None], tanks.load(path, env.params))
+    state = rollout.reset_states(env, jax.random.PRNGKey(3)[None], layout)
+    np.testing.assert_allclose(np.asarray(state.info["goal"][0]), goal, atol=1e-6)
+    plan = guidance.plan(jax.tree.map(lambda x: x[0], layout), env.params, state.info["goal"][0])
+    seeds = np.asarray(plan["field"]) == 0.0
+    lowest = fly.GRID_Z[np.nonzero(seeds.any((0, 1)))[0].min()]
+    assert goal[2] + 0.25 <= lowest <= goal[2] + env.params.arrival_distance       # above it, within reach
+    trials = rollout.run_from_states(env, route.route_follower(plan), state, jax.random.PRNGKey(0)[None],
+                                     MAX_STEPS)
+    assert trials["success"][0], f"outcome {trials['outcome'][0]} after {trials['steps'][0]} steps"
+    assert not trials["collision"][0]

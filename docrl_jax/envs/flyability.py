@@ -10,9 +10,14 @@ loader a few on the CPU).
     `clearance(p)` from the walls, the floor and every obstacle. Any 26-neighbour move between two free
     cells then stays at least clearance - step * sqrt(3) / 2 (~0.33 m) from every solid (distances are
     1-Lipschitz), so a route never slips through a solid between cells.
-  * Start and goal cells (`region_cells`): free cells inside a layout's air or water region (grown by half
-    a cell, so a point region picks its nearest cells) and at least `goal_clearance` from the obstacles,
-    as the env draws its starts and goals.
+  * Start and goal cells (`region_cells`): a region's points are the cell centres inside a layout's air or
+    water region (grown by half a cell, so a point region picks its nearest cells) at least `goal_clearance`
+    from the obstacles, as the env draws its starts and goals. Its cells are those points that are free
+    cells; a region with none (every point nearer the floor than the clearance: a goal 0.3 m above the
+    floor, where the paper puts its underwater goals) takes the free cells within the arrival distance
+    (`arrival_distance`, 0.5 m) of its points instead: a goal is reached from them, a start climbs to
+    them (the route follower rejoins the free cells within 2 cells on each axis, docrl_jax/envs/guidance.py).
+    A region with no cells either way fails both trips. A region with free points keeps exactly those.
   * `distance_field`: route length from every free cell to the nearest seed cell over 26-neighbour moves
     (Bellman-Ford sweeps of shifted copies of a padded grid until nothing changes, as JaxUED's maze check
     floods its grid). In open space the 26-neighbour metric overestimates the straight line by up to
@@ -20,17 +25,21 @@ loader a few on the CPU).
     unobstructed trip lies in 1 .. 1.13 plus the cells' spread.
   * `check`: both trips of a layout, A-W (air region to water region) and W-A, as a `Route`.
   * `route_path`: the polyline of one route, steepest descent down a field (docs, a route-following policy).
+  * `blockage`: why a trip is not flyable, for a tank file's refusal: the widest way (`widest_field`, the
+    most clearance a way keeps) from a cut-off start cell and where it is narrowest.
 
 Cost, `python -m docrl_jax.envs.flyability` on the 2-core development CPU (compiled; median of 5): one
 layout 124 ms, 64 layouts vmapped 6.3 s (~98 ms each). Of one layout's time, the cells' distances to the
 33 solids are ~40 ms, each wavefront ~8 ms (22 and 11 sweeps in generated layout 3), each straight-line field
-~5 ms. Vertically the clearance is conservative (`clearance`): with the default water band a floor
-at -0.8 m (the highest a tank file may have) leaves no water cell (the top one, z = -0.25, is 0.55 m
-above it, a float's width short), and such a tank reads as not flyable; at -0.9 m it has one layer.
+~5 ms; a region's arrival cells (`_near`) ~1 ms. Vertically the clearance is conservative (`clearance`):
+with the default water band a floor at -0.8 m (the highest a tank file may have) leaves no free water
+cell (the top one, z = -0.25, is 0.55 m above it, a float's width short), and the water region takes
+the surface layer's cells within the arrival distance of it; at -0.9 m it has one layer of its own.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax
@@ -61,7 +70,8 @@ class Route(NamedTuple):
     longest: jax.Array      # (2,) the longest of those routes, m (inf unless flyable)
     straight: jax.Array     # (2,) mean straight-line distance from a start cell to its nearest goal cell, m
     #                         (inf when a region has no cells); length / straight is the detour ratio
-    start_cells: jax.Array  # (2,) int32 start-region cells (0: the region lies inside solids or out of bounds)
+    start_cells: jax.Array  # (2,) int32 start-region cells (0: none of the region's points that keep
+    #                         goal_clearance from the obstacles lies within the arrival distance of a free cell)
 
 
 def clearance(p: EnvParams) -> float:
@@ -94,20 +104,43 @@ def _solid_gaps(layout: layouts.Layout):
     return _gaps_to(layouts.obstacles(layout)), _gaps_to(layouts.boundary(layout, _NO_WALLS))
 
 
-def _free_of(gap: jax.Array, z_min, p: EnvParams) -> jax.Array:
+def _nearest(*gaps) -> jax.Array:
+    """Distance (X, Y, Z) from every cell centre to the nearest of the walls and the solids of `gaps`."""
+    return functools.reduce(jnp.minimum, gaps, _wall_gap(_centres()))
+
+
+def _in_bounds(z_min, p: EnvParams) -> jax.Array:
     z = _centres()[..., 2]
-    return (z >= z_min) & (z <= p.bounds[1]) & (gap >= clearance(p))
+    return (z >= z_min) & (z <= p.bounds[1])
+
+
+def _free_of(gap: jax.Array, z_min, p: EnvParams) -> jax.Array:
+    return _in_bounds(z_min, p) & (gap >= clearance(p))
 
 
 def _free(layout: layouts.Layout, p: EnvParams, obstacle_gap, floor_gap) -> jax.Array:
-    return _free_of(jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), _wall_gap(_centres())), layout.z_min, p)
+    return _free_of(_nearest(obstacle_gap, floor_gap), layout.z_min, p)
 
 
 def _region(layout: layouts.Layout, p: EnvParams, medium, free, obstacle_gap) -> jax.Array:
+    """The region's cells (module doc): its free points, else the free cells within the arrival distance of
+    its points. Only where it has no free point: added to every region, the arrival cells would shorten the
+    gallery's routes by up to 0.3 m and the structured tanks' by up to 0.7 m, and move the route reward."""
     lo, hi = layout.regions[medium, 0], layout.regions[medium, 1]
     c = _centres()
     inside = jnp.all((c >= lo - GRID_STEP / 2) & (c <= hi + GRID_STEP / 2), -1)
-    return free & inside & (obstacle_gap >= p.goal_clearance)
+    points = inside & (obstacle_gap >= p.goal_clearance)
+    own = free & points
+    return jnp.where(jnp.any(own), own, free & _near(points, p.arrival_distance))
+
+
+def _cells(layout: layouts.Layout, p: EnvParams):
+    """(every cell's distance to the nearest solid, the free cells, the air and water regions' cells
+    stacked (2, X, Y, Z)) of a layout."""
+    obstacle_gap, floor_gap = _solid_gaps(layout)
+    gap = _nearest(obstacle_gap, floor_gap)
+    free = _free_of(gap, layout.z_min, p)
+    return gap, free, jnp.stack([_region(layout, p, m, free, obstacle_gap) for m in (0, 1)])
 
 
 def cell_centres() -> jax.Array:
@@ -117,8 +150,7 @@ def cell_centres() -> jax.Array:
 
 def cell_gaps(layout: layouts.Layout) -> jax.Array:
     """float32 (X, Y, Z): distance from every cell centre to the nearest solid: walls, floor, obstacles."""
-    obstacle_gap, floor_gap = _solid_gaps(layout)
-    return jnp.minimum(jnp.minimum(obstacle_gap, floor_gap), _wall_gap(_centres()))
+    return _nearest(*_solid_gaps(layout))
 
 
 def free_cells(layout: layouts.Layout, p: EnvParams) -> jax.Array:
@@ -131,15 +163,16 @@ def tank_cells(obstacles: geometry.Solids, boundary: geometry.Solids, z_min, p: 
     """(free cells, cell gaps) of any tank from its solids, as the env's hull check sees them
     (`HUAUVEnv.solids`: a fixed scenario's MJCF geoms, or a procedural layout's): `free_cells` and
     `cell_gaps` of a layout are these with the layout's obstacles, floor and walls."""
-    gap = jnp.minimum(jnp.minimum(_gaps_to(obstacles), _gaps_to(boundary)), _wall_gap(_centres()))
+    gap = _nearest(_gaps_to(obstacles), _gaps_to(boundary))
     return _free_of(gap, z_min, p), gap
 
 
 def region_cells(layout: layouts.Layout, p: EnvParams, medium) -> jax.Array:
-    """bool (X, Y, Z): free cells inside `layout.regions[medium]` (0 air, 1 water) grown by half a cell on
-    each side, at least `p.goal_clearance` from the obstacles: where the env can put a start or a goal."""
-    obstacle_gap, floor_gap = _solid_gaps(layout)
-    return _region(layout, p, medium, _free(layout, p, obstacle_gap, floor_gap), obstacle_gap)
+    """bool (X, Y, Z): the start or goal cells of `layout.regions[medium]` (0 air, 1 water): free cells
+    inside the region grown by half a cell on each side, at least `p.goal_clearance` from the obstacles
+    (where the env can put a start or a goal); where none is, the free cells within `p.arrival_distance` of
+    such points of the region (module doc)."""
+    return _cells(layout, p)[2][medium]
 
 
 def relax(d: jax.Array, cost, start=None) -> jax.Array:
@@ -175,6 +208,21 @@ def distance_field(free: jax.Array, seeds: jax.Array, cost=None) -> jax.Array:
 
     d, _, _ = jax.lax.while_loop(more, sweep, (d0, jnp.asarray(True), jnp.asarray(0, jnp.int32)))
     return d
+
+
+def _near(seeds: jax.Array, radius: float) -> jax.Array:
+    """bool (X, Y, Z): cells whose centre lies within `radius` of a seed cell's centre. The squared distance
+    separates by axis and a seed farther than `radius` along one axis is too far, so each axis takes the
+    shifts up to `radius` only (5 at the default arrival distance; `_straight_line` takes whole axes)."""
+    reach = int(np.floor(radius / GRID_STEP + 1e-6))
+    sq = jnp.where(seeds, jnp.float32(0.0), jnp.float32(jnp.inf))
+    for axis in range(3):
+        pad = [(0, 0)] * 3
+        pad[axis] = (reach, reach)
+        padded, n = jnp.pad(sq, pad, constant_values=jnp.inf), sq.shape[axis]
+        sq = functools.reduce(jnp.minimum, [jax.lax.slice_in_dim(padded, reach + o, reach + o + n, axis=axis)
+                                            + jnp.float32((o * GRID_STEP) ** 2) for o in range(-reach, reach + 1)])
+    return sq <= jnp.float32(radius) ** 2
 
 
 def _straight_line(seeds: jax.Array) -> jax.Array:
@@ -220,9 +268,7 @@ def check_with_fields(layout: layouts.Layout, p: EnvParams, straight: bool = Tru
     the water region's cells (A-W's goals) and to the air region's (W-A's); the trainer's route reward
     reads them (docrl_jax/envs/curriculum.py). `straight=False` leaves Route.straight NaN: the exact
     straight-line field is most of the program a level pool compiles and it needs none."""
-    obstacle_gap, floor_gap = _solid_gaps(layout)
-    free = _free(layout, p, obstacle_gap, floor_gap)
-    air, water = (_region(layout, p, m, free, obstacle_gap) for m in (0, 1))
+    _, free, (air, water) = _cells(layout, p)
     starts, goals = jnp.stack([air, water]), jnp.stack([water, air])
     fields = jax.vmap(distance_field, (None, 0))(free, goals)
     straight = jax.vmap(_straight_line)(goals) if straight else jnp.full(goals.shape, jnp.nan)
@@ -238,6 +284,58 @@ def check_with_fields(layout: layouts.Layout, p: EnvParams, straight: bool = Tru
                  longest=jnp.where(flyable, jnp.max(reach, (1, 2, 3)), inf),
                  straight=jnp.where(has_cells, per_cell(straight), inf),
                  start_cells=n_start.astype(jnp.int32)), fields
+
+
+def widest_field(space: jax.Array, gap: jax.Array, seeds: jax.Array) -> jax.Array:
+    """float32 (X, Y, Z): for every cell of `space`, the most clearance a way from it to a seed cell of
+    `space` can keep: the largest, over 26-neighbour routes through `space`, of the least `gap` of their
+    cells (a wavefront as `distance_field`'s, taking max of min for min of sum); -inf where no route is
+    and off `space`. A trip that `check` finds blocked keeps less than `clearance` on its widest way."""
+    space = jnp.asarray(space, bool)
+    low = jnp.float32(-jnp.inf)
+    nx, ny, nz = gap.shape
+
+    def sweep(state):
+        w, _, n = state
+        padded = jnp.pad(w, 1, constant_values=low)
+        best = functools.reduce(jnp.maximum, [padded[1 + i:1 + i + nx, 1 + j:1 + j + ny, 1 + k:1 + k + nz]
+                                              for i, j, k in _OFFSETS])
+        new = jnp.where(space, jnp.maximum(w, jnp.minimum(gap, best)), low)
+        return new, jnp.any(new > w), n + 1
+
+    w0 = jnp.where(space & seeds, gap, low)
+    w, _, _ = jax.lax.while_loop(lambda state: state[1] & (state[2] < MAX_SWEEPS), sweep,
+                                 (w0, jnp.asarray(True), jnp.asarray(0, jnp.int32)))
+    return w
+
+
+class Blockage(NamedTuple):
+    """Where one trip of `check` is blocked (`blockage`): for a tank file's refusal."""
+    start: jax.Array       # (3,) a start cell cut off from the goal cells: of those whose widest way keeps the
+    #                        least clearance, the nearest the start region's centre
+    clearance: jax.Array   # () the most clearance (m) a way from there to the goal cells keeps
+    narrowest: jax.Array   # (3,) where the shortest of those widest ways keeps only that clearance
+
+
+def blockage(layout: layouts.Layout, p: EnvParams, trip) -> Blockage:
+    """Why `trip` (0 A-W, 1 W-A) of a layout whose regions both have cells is not flyable (`Blockage`). The
+    ways run through every cell inside the episode's bounds, solids too (`widest_field`); the narrowest
+    place is a cell keeping only that clearance on a shortest way among those keeping at least as much.
+    Four wavefronts: for a refusal's message, not for a level pool."""
+    gap, free, regions = _cells(layout, p)
+    starts, goals = regions[trip], regions[1 - trip]
+    space = _in_bounds(layout.z_min, p)
+    widest = widest_field(space, gap, goals)
+    cut = starts & ~jnp.isfinite(distance_field(free, goals))
+    keeps = jnp.min(jnp.where(cut, widest, jnp.inf))
+    centres = _centres()
+    off_centre = jnp.linalg.norm(centres - layout.regions[trip].mean(0), axis=-1)
+    start = jnp.argmin(jnp.where(cut & (widest == keeps), off_centre, jnp.inf))
+    wide = space & (gap >= keeps)
+    from_start = distance_field(wide, jnp.zeros(gap.size, bool).at[start].set(True).reshape(gap.shape))
+    through = jnp.where(gap == keeps, from_start + distance_field(wide, goals), jnp.inf)
+    centres = centres.reshape(-1, 3)
+    return Blockage(start=centres[start], clearance=keeps, narrowest=centres[jnp.argmin(through)])
 
 
 def route_path(field, start, max_points: int = 400) -> jax.Array:

@@ -10,9 +10,10 @@
 docs/TANKS.md lists every key and rule. `load` checks a file against those rules and raises `TankError`
 (one line: the file, the solid or region, the problem, what is valid) before the env compiles anything: the
 longest check, `flyability.check` (a route both ways between the air and water regions), compiles once
-per parameter set (seconds on a CPU; then ~0.2 s a tank). `load_set` stacks a set of tanks (a file, a
-folder, a packaged tank's name, or "gallery") for `HUAUVEnv`; `save` writes any layout (e.g.
-`layouts.held_out(i, p)`) as a tank file to edit and fly again.
+per parameter set (seconds on a CPU; then ~0.2 s a tank); why a tank cannot be flown is worded by
+docrl_jax/envs/tank_reasons.py (its first refused route compiles `flyability.blockage`, ~3 s). `load_set`
+stacks a set of tanks (a file, a folder, a packaged tank's name, or "gallery") for `HUAUVEnv`; `save`
+writes any layout (e.g. `layouts.held_out(i, p)`) as a tank file to edit and fly again.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from docrl_jax.envs import geometry, layouts
+from docrl_jax.envs import geometry, layouts, tank_reasons
 from docrl_jax.envs.params import BOX_SLOTS, CAPSULE_SLOTS, EnvParams
 from docrl_jax.resources import resource_dir
 from docrl_jax.schema import did_you_mean
@@ -189,8 +190,7 @@ def _region(value, medium: str, floor_top: float, p: EnvParams, where: str) -> n
 
 def _analyse(layout: layouts.Layout, p: EnvParams):
     """One compiled program per parameter set: (flyability.check's Route; a grid of points over each
-    region (2, N, 3) and their gaps to the obstacles (2, N); each slot's gap from each region's centre
-    (2, 32))."""
+    region (2, N, 3) and their gaps to the obstacles (2, N))."""
     from docrl_jax.envs import flyability
     t = jnp.linspace(0.0, 1.0, _GRID_POINTS)
 
@@ -201,15 +201,13 @@ def _analyse(layout: layouts.Layout, p: EnvParams):
     solids = layouts.obstacles(layout)
     points = jax.vmap(grid)(layout.regions)
     gaps = jax.vmap(jax.vmap(lambda c: geometry.signed_distance(solids, c)))(points)
-    each = jax.vmap(lambda c: jnp.concatenate([geometry.box_distances(solids, c),
-                                               geometry.capsule_distances(solids, c)]))(layout.regions.mean(1))
-    return flyability.check(layout, p), points, gaps, each
+    return flyability.check(layout, p), points, gaps
 
 
 _ANALYSE: dict = {}
 
 
-def _free_point(points, gaps, to_slots, names, p: EnvParams, medium: str, where: str) -> np.ndarray:
+def _free_point(layout, points, gaps, names, p: EnvParams, medium: str, where: str) -> np.ndarray:
     """A point of a region the env's sampler accepts (>= goal_clearance from every obstacle): of a grid of
     33 points a side over the region, the free one nearest its centre; else `TankError` naming the solid
     nearest the centre."""
@@ -217,32 +215,18 @@ def _free_point(points, gaps, to_slots, names, p: EnvParams, medium: str, where:
     if ok.any():
         centre = points.mean(0)
         return points[ok][np.argmin(np.linalg.norm(points[ok] - centre, axis=-1))]
-    nearest = int(np.argmin(np.where([n is not None for n in names], to_slots, np.inf)))
-    if to_slots[nearest] < 0:
-        why = f"the {medium} region lies inside solid {names[nearest]!r}"
+    gap, solid = next(x for x in tank_reasons.by_distance(layout, names, points.mean(0)) if x[1].startswith("solid"))
+    if gap < 0:
+        why = f"the {medium} region lies inside {solid}"
     else:
         why = (f"every point of the {medium} region lies within goal_clearance {p.goal_clearance} m of a solid "
-               f"(nearest its centre: {names[nearest]!r})")
+               f"(nearest its centre: {solid})")
     raise TankError(f"{where}: {why}; a start or goal needs a point >= {p.goal_clearance} m from every solid "
                     "(move or widen the region, or move the solid)")
 
 
 def _stack(*trees):
     return jax.tree.map(lambda *x: jnp.stack(x), *trees)
-
-
-def _check_routes(route, p: EnvParams, where: str) -> None:
-    from docrl_jax.envs import flyability
-    clear = flyability.clearance(p)
-    for d, (start, goal) in enumerate((("air", "water"), ("water", "air"))):
-        if route.flyable[d]:
-            continue
-        empty = [m for m, n in ((start, route.start_cells[d]), (goal, route.start_cells[1 - d])) if n == 0]
-        why = (f"the {empty[0]} region has no point {clear:.2f} m from the walls and floor, and goal_clearance "
-               f"{p.goal_clearance} m from the obstacles, inside the episode's bounds" if empty else
-               f"some of the {start} region's free space does not reach the {goal} region")
-        raise TankError(f"{where}: no flyable route from the {start} region to the {goal} region: {why}; "
-                        f"a route keeps {clear:.2f} m from every solid, so a gap must be >= ~1.5 m wide")
 
 
 def _parse(path: Path, p: EnvParams) -> layouts.Layout:
@@ -291,10 +275,13 @@ def _parse(path: Path, p: EnvParams) -> layouts.Layout:
              + [g[0] for g in solids["capsule"]] + [None] * (CAPSULE_SLOTS - len(solids["capsule"])))
     if p not in _ANALYSE:
         _ANALYSE[p] = jax.jit(lambda lay: _analyse(lay, p))
-    route, points, gaps, to_slots = jax.device_get(_ANALYSE[p](layout))
-    clear = [_free_point(points[i], gaps[i], to_slots[i], names, p, m, where) for i, m in enumerate(_REGION_NAMES)]
-    _check_routes(route, p, where)
-    return layout.replace(clear=jnp.asarray(np.stack(clear), jnp.float32))
+    route, points, gaps = jax.device_get(_ANALYSE[p](layout))
+    clear = [_free_point(layout, points[i], gaps[i], names, p, m, where) for i, m in enumerate(_REGION_NAMES)]
+    layout = layout.replace(clear=jnp.asarray(np.stack(clear), jnp.float32))
+    why = tank_reasons.route_refusal(layout, route, names, p)
+    if why:
+        raise TankError(f"{where}: {why}")
+    return layout
 
 
 # ---------------------------------------------------------------- loading files and sets

@@ -1,9 +1,12 @@
 """The flyability check (docrl_jax/envs/flyability.py) against independent references: the 26-neighbour
 wavefront against a closed form in open space and against a heap Dijkstra of our own on a random
-obstacle grid, free cells against hand-computed clearances, and whole checks of hand-built tanks (empty,
-a wall across the tank with and without an opening, a region inside a solid), one at a time and vmapped.
+obstacle grid, the widest-way wavefront against thresholded connected components (scipy), free cells
+against hand-computed clearances, and whole checks of hand-built tanks (empty, a wall across the tank
+with and without an opening, an opening too narrow, a region inside a solid, a goal 0.3 m above the
+floor), one at a time and vmapped.
 
-Compiled programs: one jitted check, one vmapped check, one per-layout field program, small fields."""
+Compiled programs: one jitted check, one vmapped check, one per-layout field program, one blockage,
+small fields."""
 
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from docrl_jax.envs import flyability as fly
 from docrl_jax.envs import layouts
@@ -26,6 +30,9 @@ PARKED = np.array([0.0, 0.0, -50.0], np.float32)
 AIR_SIDE = [[-4.3, -4.3, 0.5], [-1.5, 4.3, 4.0]]      # x < 0 of a wall at x = 0
 WATER_SIDE = [[1.5, -4.3, -1.0], [4.3, 4.3, -0.4]]    # x > 0
 OPENING = (1.7, 3.3)                                   # y range of the 1.6 m opening
+NARROW = (1.7, 2.6)                                    # y range of a 0.9 m opening: its best cell, y = 2.25,
+NARROW_KEEPS = 2.6 - 2.25                              # keeps 0.35 m from the solids (0.55 from the other side)
+PAPER_GOAL = [2.0, 0.0, -1.0]                          # 0.3 m above FLOOR_TOP, on a cell centre
 
 
 def tank(air, water, boxes=()):
@@ -57,6 +64,8 @@ TANKS = {
     "wall": tank(AIR_SIDE, WATER_SIDE, [wall(-5.0, 5.0)]),
     "opening": tank(AIR_SIDE, WATER_SIDE, [wall(-5.0, OPENING[0]), wall(OPENING[1], 5.0)]),
     "air_in_solid": tank([-3.0, -3.0, 2.0], [2.0, 2.0, -0.5], [((-3.0, -3.0, 2.0), (0.6, 0.6, 0.6))]),
+    "narrow": tank(AIR_SIDE, WATER_SIDE, [wall(-5.0, NARROW[0]), wall(NARROW[1], 5.0)]),
+    "paper_goal": tank([-2.0, 0.0, 2.0], PAPER_GOAL),
 }
 NAMES = list(TANKS)
 
@@ -119,6 +128,24 @@ def test_distance_field_matches_dijkstra_among_obstacles():
     reference = _dijkstra(free, seeds)
     assert np.isinf(reference).any() and np.isfinite(reference).sum() > 300   # walls cut some cells off
     np.testing.assert_allclose(field, reference, rtol=1e-5)
+
+
+def test_widest_field_matches_thresholded_components():
+    """The widest way from a cell to a seed keeps the largest t at which the cell and a seed share a
+    26-connected component of the space's cells with gap >= t (every t tried: scipy labels each)."""
+    rng = np.random.default_rng(5)
+    gap = rng.normal(0.5, 0.3, (9, 8, 7)).astype(np.float32)
+    space = rng.random(gap.shape) > 0.1
+    seeds = np.zeros(gap.shape, bool)
+    seeds[0, 0, 0] = seeds[8, 7, 3] = space[0, 0, 0] = space[8, 7, 3] = True
+    reference = np.full(gap.shape, -np.inf, np.float32)
+    for t in np.unique(gap[space]):
+        labels, _ = ndimage.label(space & (gap >= t), np.ones((3, 3, 3)))
+        joined = np.isin(labels, np.unique(labels[seeds & (gap >= t)])) & (labels > 0)
+        reference[joined] = t            # thresholds rise: the last that joins a cell is its widest way
+    got = np.asarray(fly.widest_field(space, gap, seeds))
+    assert np.isfinite(reference).sum() > 300 and np.isinf(reference[~space]).all()
+    np.testing.assert_array_equal(got, reference)
 
 
 def test_free_cells_hand_computed():
@@ -189,6 +216,29 @@ def test_region_inside_a_solid_has_no_start_cells(routes):
     r = routes["air_in_solid"]
     assert r.start_cells[0] == 0 and r.start_cells[1] > 0
     assert not r.flyable.any() and np.isinf(r.length).all()
+
+
+def test_a_narrow_opening_is_blocked_where_it_is_narrowest(routes):
+    """A 0.9 m opening: not flyable; `blockage` names the best cell in it (x = 0, y = 2.25), keeping 0.35 m."""
+    assert not routes["narrow"].flyable.any() and (routes["narrow"].start_cells > 100).all()
+    for trip in (0, 1):
+        b = jax.tree.map(np.asarray, jax.jit(lambda layout, d: fly.blockage(layout, P, d))(TANKS["narrow"], trip))
+        assert b.clearance == pytest.approx(NARROW_KEEPS, abs=1e-5)
+        np.testing.assert_allclose(b.narrowest[:2], [0.0, 2.25], atol=1e-6)
+        assert (b.start[0] < 0) == (trip == 0)                 # a start cell on the start's side of the wall
+
+
+def test_a_goal_near_the_floor_takes_the_free_cells_within_the_arrival_distance(routes):
+    """The paper's underwater goals lie 0.3 m above the floor, below every free cell (0.55 m up): the water
+    region's cells are the free cells within the arrival distance of the goal, and the trips are flown."""
+    r = routes["paper_goal"]
+    assert r.flyable.all() and r.start_cells[0] == 1
+    free, air, water, field = (np.asarray(x) for x in _grids(TANKS["paper_goal"]))
+    to_goal = np.linalg.norm(np.asarray(fly.cell_centres()) - np.array(PAPER_GOAL), axis=-1)
+    assert not free[to_goal < 1e-6].any()                                  # the goal's own cell is not free
+    np.testing.assert_array_equal(water, free & (to_goal <= P.arrival_distance))
+    assert r.start_cells[1] == water.sum() > 0
+    assert np.isfinite(field[air]).all()
 
 
 def test_vmapped_batch_matches_one_at_a_time(routes):

@@ -160,7 +160,21 @@ REFUSED = {
     "a water region in the air": ({**TANK, "water": [3.0, 3.0, 0.5]}, ["the water region", "z < 0"]),
     "no way through": (
         {**TANK, "solids": [_solid("wall_full", (0.0, 0.0, 2.0), (0.15, 5.0, 3.4))]},
-        ["no flyable route from the air region to the water region", "1.5 m"]),
+        ["no route from the air region to the water region: solid 'wall_full' closes every way",
+         "a gap must be >= ~1.1 m wide"]),
+    # The wall's opening 0.9 m wide (y 0 .. 0.9): its best cells, y = 0.5, keep 0.4 m from wall_b.
+    "an opening too narrow": (
+        {**TANK, "solids": [_solid("wall_a", (0.0, -2.5, 2.0), (0.15, 2.5, 3.4)),
+                            _solid("wall_b", (0.0, 2.95, 2.0), (0.15, 2.05, 3.4))]},
+        ["no route from the air region to the water region", "the widest way keeps at most 0.40 m from the solids",
+         "beside solid 'wall_b' and solid 'wall_a'", "a gap must be >= ~1.1 m wide"]),
+    # A goal 0.3 m above the floor and goal_clearance (1.0 m) under a slab: a free cell keeps 0.55 m from both,
+    # and the band that does, z -1.24 .. -1.04, holds no cell centre: no free cell within the arrival distance.
+    "a goal under a slab near the floor": (
+        {**TANK, "floor_top": -1.79, "water": [2.0, 0.0, -1.49],
+         "solids": [_solid("slab", (2.0, 0.0, -0.39), (1.5, 1.5, 0.1))]},
+        ["the water region at [2.0, 0.0, -1.49] lies 0.30 m above the floor and 1.00 m from solid 'slab': "
+         "no free cell within the arrival distance 0.5 m of it"]),
 }
 
 
@@ -174,6 +188,16 @@ def test_broken_files_are_refused_in_one_line(case, params, tmp_path):
     assert "\n" not in message and message.startswith(str(path.resolve())), message
     for part in expected:
         assert part in message, message
+
+
+@pytest.mark.parametrize("water", [[2.0, 0.0, -1.0], {"min": [1.0, -1.0, -1.1], "max": [3.0, 1.0, -0.9]}],
+                         ids=["a point", "a layer"])
+def test_goals_near_the_floor_load(water, params, tmp_path):
+    """Water 0.2-0.4 m above the floor (the paper puts its underwater goals 0.3 m above it), below every free
+    cell (0.55 m up): the trips end within the arrival distance of it, so an empty tank of it loads."""
+    layout = _host(tanks.load(_write(tmp_path, {"floor_top": -1.3, "air": [-2.0, 0.0, 2.0], "water": water}),
+                              params))
+    np.testing.assert_allclose(layout.clear, [[-2.0, 0.0, 2.0], [2.0, 0.0, -1.0]], atol=1e-6)
 
 
 def test_sets_resolve_folders_and_names(tmp_path, params):
