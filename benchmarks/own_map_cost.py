@@ -3,7 +3,10 @@ down the tank's route (--guide tank) and down the route planned on its own beams
 same trials of a tank set (docrl_jax.evaluate.tank_trials), compiled first, then timed.
 
     python benchmarks/own_map_cost.py [--policy sac_mlp_tanks] [--trials 1000] [--tank gallery] [--repeats 3]
-        [--out cost.json]
+        [--modes mapless,tank,sensors] [--belief SWEEPS=1 ...] [--out cost.json]
+
+`--belief NAME=VALUE` sets one of docrl_jax.envs.belief's settings (SWEEPS, GAP_REACH, UNKNOWN_GAP, ...) for the
+run: what a setting costs.
 
 A trial runs its whole `--max-steps` scan (the rollout records every step), so env steps = trials x steps.
 Prints one line per mode (median over repeats) and the ratio to mapless; --out writes them as JSON.
@@ -24,18 +27,28 @@ def main(argv=None) -> int:
     p.add_argument("--tank", default="gallery")
     p.add_argument("--max-steps", type=int, default=500)
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--modes", default="mapless,tank,sensors")
+    p.add_argument("--belief", action="append", default=[], metavar="NAME=VALUE")
     p.add_argument("--out", default=None)
     args = p.parse_args(argv)
+    modes = args.modes.split(",")
+    if not set(modes) <= {"mapless", "tank", "sensors"}:
+        p.error(f"--modes {args.modes!r}: valid modes are mapless, tank, sensors")
 
     import jax
 
     from docrl_jax import pretrained
+    from docrl_jax.envs import belief
     from docrl_jax.evaluate import policies, rollout, tank_sets, tank_trials
+    settings = dict(kv.split("=", 1) for kv in args.belief)
+    for name, value in settings.items():
+        setattr(belief, name, type(getattr(belief, name))(value))
     env_kw = rollout.flown_env(pretrained.vehicle(args.policy), {})
     host = rollout.make_eval_env(0, args.max_steps, **env_kw)
     _, stack = tank_sets.load(args.tank, host.params)
     rows = []
-    for guide in (None, "tank", "sensors"):
+    for mode in modes:
+        guide = None if mode == "mapless" else mode
         policy, label = policies.policy_for(host, name=args.policy, guide=guide)
         t0 = time.perf_counter()
         tank_trials.run(policy, stack, "water_to_air", args.trials, args.max_steps, 0, env_kw)
@@ -46,14 +59,15 @@ def main(argv=None) -> int:
             trials = tank_trials.run(policy, stack, "water_to_air", args.trials, args.max_steps, 0, env_kw)
             times.append(time.perf_counter() - t0)
         seconds = statistics.median(times)
-        rows.append({"mode": guide or "mapless", "label": label, "trials": args.trials, "max_steps": args.max_steps,
+        rows.append({"mode": mode, "label": label, "belief": settings, "trials": args.trials, "max_steps": args.max_steps,
                      "first_call_s": round(first, 2), "seconds": [round(t, 3) for t in times],
                      "env_steps_per_s": round(args.trials * args.max_steps / seconds),
                      "success": float(trials["success"].mean())})
-    base = rows[0]["env_steps_per_s"]
+    base = rows[0]["env_steps_per_s"] if modes[0] == "mapless" else None
     for r in rows:
-        r["vs_mapless"] = round(r["env_steps_per_s"] / base, 3)
-        print(f"{r['mode']:8s} {r['env_steps_per_s']:>10,d} env steps/s ({r['vs_mapless']:.2f}x mapless; "
+        r["vs_mapless"] = base and round(r["env_steps_per_s"] / base, 3)
+        ratio = f"{r['vs_mapless']:.2f}x mapless" if base else "mapless not run"
+        print(f"{r['mode']:8s} {settings or ''} {r['env_steps_per_s']:>10,d} env steps/s ({ratio}; "
               f"median of {args.repeats}; first call {r['first_call_s']} s; W-A success {100 * r['success']:.0f} %)")
     if args.out:
         device = jax.devices()[0].device_kind

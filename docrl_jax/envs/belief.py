@@ -37,12 +37,12 @@ from docrl_jax.envs.params import EnvParams
 UNKNOWN, FREE, OCCUPIED = 0, 1, 2
 BEAM_STEP = flyability.GRID_STEP / 2      # m between the points a beam marks (two per cell)
 REACH = float(np.hypot(np.hypot(9.5, 9.5), 9.0)) + 1.0   # m: the farthest a beam from inside the grid can cross it
-GAP_REACH = 5                              # cells: `gap` is exact up to 1.25 m (the guidance reads <= 1 m)
+GAP_REACH = 4                              # cells: `gap` is exact up to 1 m (what the guidance and UNKNOWN_GAP read)
 UNKNOWN_COST = 0.5                         # extra route cost per metre through UNKNOWN cells
 UNKNOWN_GAP = 1.0                          # m: an UNKNOWN cell nearer a seen solid than this is not passable: beams
 #                                            leave pockets unseen in a surface they sweep (a slab under a hovering
 #                                            vehicle is hit by one beam), and a pocket is no opening
-SWEEPS = 4                                 # relaxation sweeps of the field per step
+SWEEPS = 2                                 # relaxation sweeps of the field per step
 
 _SAMPLES = int(np.ceil(REACH / BEAM_STEP))
 _GRID = np.asarray(flyability.GRID_SHAPE)
@@ -101,8 +101,8 @@ def initial_field(goal: jax.Array) -> jax.Array:
     return jnp.linalg.norm(flyability.cell_centres() - goal, axis=-1)
 
 
-def relax(field: jax.Array, free: jax.Array, seeds: jax.Array, cost: jax.Array, sweeps: int = SWEEPS) -> jax.Array:
-    """`sweeps` Bellman sweeps of the route cost from `field`: a seed cell 0, a blocked cell inf, any other the
+def relax(field: jax.Array, free: jax.Array, seeds: jax.Array, cost: jax.Array, sweeps: int | None = None) -> jax.Array:
+    """`sweeps` (default SWEEPS) Bellman sweeps of the route cost from `field`: a seed cell 0, a blocked cell inf, any other the
     best of its 26 neighbours plus the move's length times its cost. A cell does not keep its own old value,
     so a field that is too low where a route has closed rises to the true cost (by >= a cell a sweep)."""
     inf = jnp.float32(jnp.inf)
@@ -111,11 +111,11 @@ def relax(field: jax.Array, free: jax.Array, seeds: jax.Array, cost: jax.Array, 
         best = flyability.relax(d, cost, jnp.full(d.shape, inf))
         return jnp.where(free, jnp.where(seeds, jnp.float32(0.0), best), inf), None
 
-    return jax.lax.scan(sweep, field, None, length=sweeps)[0]
+    return jax.lax.scan(sweep, field, None, length=SWEEPS if sweeps is None else sweeps)[0]
 
 
 def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, route_cost,
-         sweeps: int = SWEEPS) -> dict:
+         sweeps: int | None = None) -> dict:
     """`guidance.aim`'s params from the belief (module doc), the field relaxed `sweeps` times from `field`.
     `route_cost(gap, p)` is the cost per metre of a known cell (guidance's dislike of cells near solids)."""
     gap = gaps(belief)
