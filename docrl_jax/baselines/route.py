@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from docrl_jax.baselines.scripted import straight_line
-from docrl_jax.envs import belief, flyability
+from docrl_jax.envs import belief
 from docrl_jax.envs import guidance
 from docrl_jax.envs.guidance import aim
 from docrl_jax.policy import Policy
@@ -96,54 +96,35 @@ def guided(policy: Policy) -> Policy:
                   which=policy.which, trial_params=_guided_plans, trial_axes=PLAN_AXES)
 
 
-def own_map_carry(inner=None) -> dict:
-    """The carry of a policy that maps as it flies: an empty belief, no field yet (made from the goal at the
-    first step), and the steered policy's own carry `inner`."""
-    return {"belief": belief.empty(), "field": jnp.zeros(flyability.GRID_SHAPE, jnp.float32),
-            "goal": jnp.full(3, jnp.nan, jnp.float32), "inner": inner}
-
-
-def own_map_plan(p, carry: dict, info: dict) -> tuple[dict, dict]:
-    """(the carry after this step's sensing, `guidance.aim`'s params planned on it): the belief takes the
-    step's beams, the field restarts from the straight line when the goal is new and is relaxed on the belief
-    (docrl_jax/envs/belief.py). `p`: the env's params (the beams' geometry, clearances, arrival)."""
-    goal = info["goal"]
-    ranges = jnp.concatenate([info["ranges"], info["vertical_ranges"]])
-    seen = belief.update(carry["belief"], p, info["position"], info["rot"], info["underwater"], ranges)
-    field = jnp.where(jnp.all(goal == carry["goal"]), carry["field"], belief.initial_field(goal))
-    plan = belief.plan(seen, field, goal, p, guidance.route_cost)
-    return {**carry, "belief": seen, "field": plan["field"], "goal": goal}, plan
-
-
 _OWN_MAP: dict = {}   # (kind, id(act), params) -> (act, init_carry, kept alive): one compile per policy and env
 
 
 def own_map_follower(p) -> Policy:
-    """The scripted follower (`route_follower`) on the route planned on its own beams (`own_map_plan`): it knows
+    """The scripted follower (`route_follower`) on the route planned on its own beams (`belief.sense_and_plan`): it knows
     nothing of the tank beforehand. `p`: the env's params."""
     if ("follower", p) not in _OWN_MAP:
         def act(params, carry, obs, info, key):
-            carry, plan = own_map_plan(p, carry, info)
+            carry, plan = belief.sense_and_plan(p, carry, info)
             inner, action = _steer(carry["inner"], obs, info, key, aim(plan, info["position"], info["goal"]))
             return {**carry, "inner": inner}, action
-        _OWN_MAP[("follower", p)] = (act, lambda: own_map_carry(_init_carry()), None)
+        _OWN_MAP[("follower", p)] = (act, lambda: belief.own_map(_init_carry()), None)
     act, init, _ = _OWN_MAP[("follower", p)]
     return Policy(name="own-map follower", params=None, init_carry=init, act=act)
 
 
 def mapped(policy: Policy, p) -> Policy:
-    """`policy` steered as `guided` steers it, at the aim of the route planned on its own beams (`own_map_plan`)
+    """`policy` steered as `guided` steers it, at the aim of the route planned on its own beams (`belief.sense_and_plan`)
     instead of the tank's: map-free. `p`: the params of the env it flies (its beams' geometry)."""
     cache_key = ("policy", id(policy.act), id(policy.init_carry), p)
     if cache_key not in _OWN_MAP:
         def act(params, carry, obs, info, key):
-            carry, plan = own_map_plan(p, carry, info)
+            carry, plan = belief.sense_and_plan(p, carry, info)
             position = info["position"]
             target = aim(plan, position, info["goal"], guidance.GUIDED_SIGHT_GAP, guidance.GUIDED_STEEP_REACH)
             inner, action = policy.act(params, carry["inner"], guidance.guide(obs, position, info["yaw"], target),
                                        info, key)
             return {**carry, "inner": inner}, action
-        _OWN_MAP[cache_key] = (act, lambda: own_map_carry(policy.init_carry()), policy)
+        _OWN_MAP[cache_key] = (act, lambda: belief.own_map(policy.init_carry()), policy)
     act, init, _ = _OWN_MAP[cache_key]
     return Policy(name=f"{policy.name} (own-map)", params=policy.params, init_carry=init, act=act,
                   source=policy.source, which=policy.which)

@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from docrl_jax.envs import flyability, sensors
+from docrl_jax.envs import flyability, guidance, sensors
 from docrl_jax.envs.params import EnvParams
 
 UNKNOWN, FREE, OCCUPIED = 0, 1, 2
@@ -114,7 +114,7 @@ def relax(field: jax.Array, free: jax.Array, seeds: jax.Array, cost: jax.Array, 
     return jax.lax.scan(sweep, field, None, length=SWEEPS if sweeps is None else sweeps)[0]
 
 
-def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, route_cost,
+def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, route_cost=guidance.route_cost,
          sweeps: int | None = None) -> dict:
     """`guidance.aim`'s params from the belief (module doc), the field relaxed `sweeps` times from `field`.
     `route_cost(gap, p)` is the cost per metre of a known cell (guidance's dislike of cells near solids)."""
@@ -124,6 +124,25 @@ def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, rou
     cost = route_cost(gap, p) + UNKNOWN_COST * (belief == UNKNOWN)
     return {"field": relax(field, free, seeds, cost, sweeps), "gap": gap,
             "arrival": jnp.float32(p.arrival_distance)}
+
+
+def own_map(inner=None) -> dict:
+    """The carry of a policy that maps as it flies (`sense_and_plan`): an empty belief, no field yet (made from
+    the goal at the first step), the goal it was made for, and the steered policy's own carry `inner`."""
+    return {"belief": empty(), "field": jnp.zeros(flyability.GRID_SHAPE, jnp.float32),
+            "goal": jnp.full(3, jnp.nan, jnp.float32), "inner": inner}
+
+
+def sense_and_plan(p: EnvParams, carry: dict, info: dict) -> tuple[dict, dict]:
+    """(the carry after this step's sensing, `guidance.aim`'s params planned on it): the belief takes the step's
+    beams (`info`: pose, attitude, ranges), the field restarts from the straight line when the goal is new and
+    is relaxed on the belief. `p`: the env's params (the beams' geometry, clearances, arrival)."""
+    goal = info["goal"]
+    ranges = jnp.concatenate([info["ranges"], info["vertical_ranges"]])
+    seen = update(carry["belief"], p, info["position"], info["rot"], info["underwater"], ranges)
+    field = jnp.where(jnp.all(goal == carry["goal"]), carry["field"], initial_field(goal))
+    params = plan(seen, field, goal, p, guidance.route_cost)
+    return {**carry, "belief": seen, "field": params["field"], "goal": goal}, params
 
 
 def frontier(belief: jax.Array) -> jax.Array:

@@ -1,7 +1,7 @@
 """What the vehicle knows, drawn: the own map (docrl_jax/envs/belief.py) of a recorded trial as a top view
 beside each frame of the renderer (`python -m docrl_jax.render --guide sensors`).
 
-`replay` runs the own-map planner (`route.own_map_plan`, the very function the steered policy ran) over a
+`replay` runs the own-map planner (`belief.sense_and_plan`, the very function the steered policy ran) over a
 trial's records (pose, attitude, ranges, goal), so the drawing is what the policy knew at each step, not a
 second model of it. `top_view` draws one step: per column of the grid within `BAND` of the vehicle's depth,
 a seen solid dark, cells a beam crossed light, unknown grey, the frontier (free next to unknown) at the vehicle's
@@ -13,7 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-BAND = 1.0           # m above and below the vehicle that the top view flattens
+from docrl_jax.envs import belief as own_map
+from docrl_jax.envs import flyability
+
+BAND = 0.5           # m above and below the vehicle that the top view flattens (a floor or slab farther off
+#                      would hide the walls at its depth)
 ROUTE_POINTS = 80    # cells of the planned route drawn from the vehicle
 
 _COLOURS = {"unknown": (150, 150, 150), "free": (235, 235, 235), "occupied": (30, 30, 30),
@@ -27,24 +31,21 @@ def replay(params, positions, rots, underwater, ranges, goals) -> dict[str, np.n
     import jax
     import jax.numpy as jnp
 
-    from docrl_jax.baselines import route
     from docrl_jax.envs.sensors import NUM_BEAMS
 
     def step(carry, x):
         info = {"position": x[0], "rot": x[1], "underwater": x[2], "ranges": x[3][:NUM_BEAMS], "vertical_ranges": x[3][NUM_BEAMS:],
                 "goal": x[4]}
-        carry, _ = route.own_map_plan(params, carry, info)
+        carry, _ = own_map.sense_and_plan(params, carry, info)
         return carry, (carry["belief"], carry["field"])
 
     xs = tuple(jnp.asarray(a) for a in (positions, rots, underwater, ranges, goals))
-    _, (beliefs, fields) = jax.jit(lambda xs: jax.lax.scan(step, route.own_map_carry(), xs))(xs)
+    _, (beliefs, fields) = jax.jit(lambda xs: jax.lax.scan(step, own_map.own_map(), xs))(xs)
     return {"belief": np.asarray(beliefs), "field": np.asarray(fields)}
 
 
 def top_view(belief: np.ndarray, field: np.ndarray, position, goal, size: int) -> np.ndarray:
     """uint8 (size, size, 3): the top view of one step (module doc); north (+y) up, east (+x) right."""
-    from docrl_jax.envs import belief as own_map
-    from docrl_jax.envs import flyability
     z = flyability.GRID_Z
     band = np.abs(z - float(position[2])) <= BAND
     cells = belief[..., band]

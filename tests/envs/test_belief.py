@@ -9,7 +9,6 @@ import pytest
 
 import docrl_jax.envs as envs
 from docrl_jax import pretrained
-from docrl_jax.baselines import route
 from docrl_jax.envs import belief, flyability, guidance
 
 
@@ -126,14 +125,14 @@ def test_the_field_rises_where_a_newly_seen_solid_closes_the_route():
     assert want[start] > float(np.linalg.norm(np.asarray(flyability.cell_centres())[start] - np.asarray(goal))) + 1.0
 
 
-def test_own_map_carry_is_the_same_under_vmap_and_alone():
+def test_the_own_map_is_the_same_under_vmap_and_alone():
     env = _env("dead_end_u")
     p = env.params
     keys = jax.random.split(jax.random.PRNGKey(3), 2)
     states = jax.vmap(lambda k: env.reset(k))(keys)
-    carries = jax.vmap(lambda _: route.own_map_carry())(keys)
-    batched, plans = jax.jit(jax.vmap(lambda c, i: route.own_map_plan(p, c, i)))(carries, states.info)
-    one, plan = jax.jit(lambda c, i: route.own_map_plan(p, c, i))(route.own_map_carry(),
+    carries = jax.vmap(lambda _: belief.own_map())(keys)
+    batched, plans = jax.jit(jax.vmap(lambda c, i: belief.sense_and_plan(p, c, i)))(carries, states.info)
+    one, plan = jax.jit(lambda c, i: belief.sense_and_plan(p, c, i))(belief.own_map(),
                                                                   jax.tree.map(lambda x: x[1], states.info))
     np.testing.assert_array_equal(np.asarray(batched["belief"][1]), np.asarray(one["belief"]))
     np.testing.assert_allclose(np.asarray(plans["field"][1]), np.asarray(plan["field"]), rtol=1e-6)
