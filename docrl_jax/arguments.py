@@ -69,6 +69,21 @@ def prog(command: str) -> str:
     return f"{top} {command}" if top else f"python -m docrl_jax.{command}"
 
 
+def parse_names(flag: str, text: str, valid, noun: str, hint: str = "") -> list[str]:
+    """A comma-separated list of names, each exactly one of `valid` (no prefix or alias matching: 'tank'
+    is not 'tanks'), without repeats, in the order given. UsageError naming the first unknown one, the
+    valid names and the nearest ('--tests 'tank': unknown test 'tank'; valid tests: ...; did you mean
+    'tanks'?'). `hint` follows the valid names."""
+    from docrl_jax.schema import did_you_mean
+    valid = list(valid)
+    names = [t.strip() for t in str(text).split(",") if t.strip()]
+    bad = [n for n in names if n not in valid] or ([] if names else [str(text)])
+    if bad:
+        raise UsageError(f"{flag} {text!r}: unknown {noun} {bad[0]!r}; valid {noun}s: {', '.join(valid)}{hint}"
+                         f"{did_you_mean(bad[0], valid)}")
+    return list(dict.fromkeys(names))
+
+
 def check_out(path: str | Path, flag: str = "--out", folder: bool = True, parents: bool = True) -> Path:
     """An output the command will write, checked before it does any work: a folder (`folder`) or a file,
     whose missing folders the command makes with their missing parents (`parents`), else only the

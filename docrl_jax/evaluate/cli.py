@@ -132,7 +132,10 @@ def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARI
         k, v = item.split("=", 1)
         k = k.strip()
         if k not in valid:
-            raise UsageError(f"--env {k!r}: unknown env parameter; valid names: {', '.join(sorted(valid))}")
+            from docrl_jax.envs.params import EnvParams
+            from docrl_jax.schema import declared_in, did_you_mean
+            raise UsageError(f"--env {k!r}: unknown env parameter; valid names: the fields of EnvParams in "
+                             f"{declared_in(EnvParams)}{did_you_mean(k, valid)}")
         if k in _EVALUATOR_KEYS:
             raise UsageError(f"--env {k}: set by the evaluator (use {_EVALUATOR_KEYS[k]})")
         out[k], typed[k] = parse_env_value(v), v

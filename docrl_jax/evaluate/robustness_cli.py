@@ -25,7 +25,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Sequence
 
-from docrl_jax.arguments import OneLineParser, check_out, prog
+from docrl_jax.arguments import OneLineParser, check_out, parse_names, prog
 from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax import pretrained
 from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
@@ -34,9 +34,6 @@ from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
 from docrl_jax.evaluate.robustness import ENVELOPE, PERTURBATIONS, TESTS, Method
 from docrl_jax.evaluate.rollout import MEDIA_KEYS
 
-TEST_ALIASES = {"perturbations": "perturbations", "sweeps": "perturbations", "random_trips": "random_trips",
-                "random": "random_trips", "held_out_layouts": "held_out_layouts", "layouts": "held_out_layouts",
-                "structured": "structured", "structures": "structured", "tanks": "tanks", "tank": "tanks"}
 DEFAULT_TANK = "gallery"   # the tanks test's set: every packaged tank
 QUICK = {"trials": 10, "layouts": 10}   # --quick: these counts and each perturbation's strongest magnitude
 
@@ -45,26 +42,19 @@ UsageError = cli.UsageError
 
 
 def parse_tests(text: str) -> list[str]:
-    vals = [t.strip().lower() for t in text.split(",") if t.strip()]
-    bad = [v for v in vals if v not in TEST_ALIASES]
-    if not vals or bad:
-        raise UsageError(f"--tests {text!r}: valid tests are {', '.join(TESTS)} (comma-separated; short: "
-                         "perturbations, random, layouts, structures, tank)")
-    return [t for t in TESTS if t in {TEST_ALIASES[v] for v in vals}]
+    """--tests: test names, exactly (docrl_jax.evaluate.robustness.TESTS), in the benchmark's order."""
+    chosen = parse_names("--tests", text.lower(), TESTS, "test", " (comma-separated)")
+    return [t for t in TESTS if t in chosen]
 
 
 def parse_perturbations(text: str) -> list[str]:
+    """--perturbations: names of the envelope, all or none."""
     text = text.strip().lower()
     if text == "all":
         return list(PERTURBATIONS)
     if text == "none":
         return []
-    vals = [t.strip() for t in text.split(",") if t.strip()]
-    bad = [v for v in vals if v not in PERTURBATIONS]
-    if not vals or bad:
-        raise UsageError(f"--perturbations {text!r}: valid names are {', '.join(PERTURBATIONS)} (comma-separated), "
-                         "all or none")
-    return list(dict.fromkeys(vals))
+    return parse_names("--perturbations", text, PERTURBATIONS, "perturbation", " (comma-separated), all or none")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -43,11 +43,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _shipped(name: str) -> str:
     """A --policy name the export takes: a shipped policy (bba is a controller, not a network)."""
+    from docrl_jax.schema import did_you_mean
     name = name.lower()
     if name not in pretrained.PRETRAINED:
         raise pretrained.UnknownPolicy(f"--policy {name!r}: valid choices: {', '.join(pretrained.PRETRAINED)} (the "
                                        "trained policies shipped in the package; bba is a controller, not a network "
-                                       "to export), or --run RUN_DIR")
+                                       f"to export), or --run RUN_DIR{did_you_mean(name, pretrained.PRETRAINED)}")
     return name
 
 
