@@ -27,7 +27,7 @@ from typing import Any, Sequence
 
 from docrl_jax.arguments import OneLineParser, check_out, parse_names, prog
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax import pretrained
+from docrl_jax import flags, pretrained
 from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
@@ -59,11 +59,10 @@ def parse_perturbations(text: str) -> list[str]:
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=prog("robustness"), description=__doc__.split("\n\n")[0])
-    p.add_argument("--run", metavar="RUN_DIR", nargs="+", action="append",
-                   help="a trainer run directory, or several of one config (separate launches: the method's seeds); "
-                        "give --run again for another method beside it")
-    p.add_argument("--policy", metavar="NAME", help="a policy beside the runs: a shipped one (docrl_jax/pretrained) "
-                   "or the baseline bba")
+    flags.add(p, "--run", ", or several of one config (separate launches: the method's seeds); give --run again for "
+                          "another method beside it", metavar="RUN_DIR", nargs="+", action="append")
+    flags.add(p, "--policy", f" beside the runs: {', '.join(pretrained.POLICY_NAMES)} (the baseline bba, or a policy "
+                             "shipped in the package, docrl_jax/pretrained)", metavar="NAME")
     p.add_argument("--label", action="append", metavar="NAME",
                    help="a method's name in the tables, once per method in order (each --run, then --policy)")
     p.add_argument("--seed-index", default="all",
@@ -74,19 +73,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tests", default=",".join(TESTS), help=f"comma-separated: {', '.join(TESTS)} (default all)")
     p.add_argument("--perturbations", default="all",
                    help=f"comma-separated names of the envelope ({', '.join(PERTURBATIONS)}), all (default) or none")
-    p.add_argument("--scenarios", default="1,2,3",
-                   help="scenarios of the perturbations and random trips (default 1,2,3)")
-    p.add_argument("--directions", default="air_to_water,water_to_air",
-                   help="comma-separated: air_to_water (A-W), water_to_air (W-A) (default both)")
-    p.add_argument("--trials", type=int, default=None,
-                   help="trials per scenario, direction and setting of the perturbations and random trips, and "
-                        "trips each way of the tanks test (default 100)")
+    flags.add(p, "--scenarios", " of the perturbations and random trips (default 1,2,3)", default="1,2,3")
+    flags.add(p, "--directions", " (default both)", default="air_to_water,water_to_air")
+    flags.add(p, "--trials", " per scenario, direction and setting of the perturbations and random trips, and trips "
+                             "each way of the tanks test (default 100)", default=None)
     p.add_argument("--layouts", type=int, default=None,
                    help="held-out layouts and held-out structured layouts, one trip each way in each (default 1000)")
-    p.add_argument("--tank", metavar="PATH|DIR|NAME",
-                   help=f"the tanks test's set: a tank file, a folder of them, a packaged tank's name or gallery "
-                        f"(default {DEFAULT_TANK}: every packaged tank); --trials trips each way, trip i in tank i "
-                        "mod the set's size")
+    flags.add(p, "--tank", f": the tanks test's set (default {DEFAULT_TANK}); --trials trips each way, trip i in tank i "
+                           "mod the set's size", metavar="PATH|DIR|NAME")
     p.add_argument("--quick", action="store_true",
                    help=f"a small sweep: {QUICK['trials']} trials, {QUICK['layouts']} layouts and each perturbation's "
                         "strongest magnitude (--trials and --layouts still win)")
@@ -94,8 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0, the evaluator's)")
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
                    help="env parameter override under every test (repeatable), as for python -m docrl_jax.evaluate")
-    p.add_argument("--out", metavar="DIR",
-                   help="output folder: robustness.csv, .json, .md, .png (its parent must exist)")
+    flags.add(p, "--out", ": a folder, robustness.csv, .json, .md, .png (its parent must exist)", metavar="DIR")
     p.add_argument("--list", action="store_true", help="print the perturbation envelope and exit")
     return p
 
@@ -118,13 +111,12 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     trials = args.trials if args.trials is not None else (QUICK["trials"] if args.quick else 100)
     num_layouts = args.layouts if args.layouts is not None else (QUICK["layouts"] if args.quick else 1000)
     for flag, value in (("--trials", trials), ("--max-steps", args.max_steps)):
-        if value <= 0:
-            raise UsageError(f"{flag} {value}: must be a positive integer")
+        flags.check_positive(flag, value)
     if not 0 < num_layouts <= HELD_OUT_IDS:
         raise UsageError(f"--layouts {num_layouts}: must be in 1..{HELD_OUT_IDS} (the held-out layout ids)")
     tests = parse_tests(args.tests)
-    scenarios = cli.parse_scenarios(args.scenarios)
-    cfg = {"tests": tests, "scenarios": scenarios, "directions": cli.parse_directions(args.directions),
+    scenarios = flags.parse_scenarios(args.scenarios)
+    cfg = {"tests": tests, "scenarios": scenarios, "directions": flags.parse_directions(args.directions),
            "trials": trials, "layouts": num_layouts, "seed_indices": cli.parse_seed_indices(args.seed_index),
            "perturbations": parse_perturbations(args.perturbations), "max_steps": args.max_steps, "seed": args.seed,
            "which": args.which, "bba_depth_phase": args.bba_depth_phase, "guide": args.guide}

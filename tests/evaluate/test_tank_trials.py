@@ -195,12 +195,12 @@ def test_a_bad_tank_is_one_line_exit_2(command, tank, message, tank_dir, tmp_pat
 
 
 @pytest.mark.parametrize("main, argv, message", [
-    (cli.main, ["--scenarios", "1"], "a tank set's trials replace the scenarios'"),
+    (cli.main, ["--scenarios", "1"], "a tank set's trials fly in scenario 0, in place of the scenarios' paper pairs"),
     (cli.main, ["--env", "start_water_fraction=1"], "--env start_water_fraction: set by --tank"),
     (cli.main, ["--env", "tank=x"], "--env tank: set by the evaluator (use --tank)"),
     (video.main, ["--scenario", "2", "--out", "v.gif"], "a tank set's trials fly in scenario 0"),
     (video.main, ["--direction", "random", "--out", "v.gif"], "with --tank, give air_to_water"),
-    (robustness_cli.main, ["--tests", "random", "--out", "r"], "only the tanks test flies a tank set"),
+    (robustness_cli.main, ["--tests", "random_trips", "--out", "r"], "only the tanks test flies a tank set"),
 ])
 def test_tank_usage_errors(main, argv, message, tmp_path, monkeypatch, capsys, no_compile):
     monkeypatch.chdir(tmp_path)
