@@ -214,7 +214,21 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
             raise UsageError(str(e)) from None
     if cfg["out"] is not None:
         check_out(cfg["out"])
+    check_memory(args, cfg)
     return cfg
+
+
+def check_memory(args: argparse.Namespace, cfg: dict[str, Any]) -> None:
+    """--trials against this machine's memory (trial_memory): a scenario's directions' trials held at once,
+    every evaluated trial's row of trials.csv until it is written."""
+    from docrl_jax.evaluate import trial_memory
+    from docrl_jax.evaluate.run_dirs import run_num_seeds
+    seeds = sum(len(cfg["seed_indices"]) if cfg["seed_indices"] is not None else run_num_seeds(run)
+                for run in args.run) if args.run else 1
+    pairs = len(cfg["scenarios"]) * len(cfg["directions"])
+    need = trial_memory.Need(args.max_steps, held=len(cfg["directions"]), rows=pairs * seeds,
+                             from_states=args.tank is not None or args.guide is not None)
+    trial_memory.check("--trials", args.trials, need)
 
 
 def output_dir(args: argparse.Namespace) -> Path | None:

@@ -136,7 +136,20 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     cfg["out"] = output_dir(args.out)
     if cfg["tank"] is not None:   # a bad set: one line, before anything compiles
         cfg["tank_names"] = tank_sets.check(cfg["tank"], rollout.eval_params(0, args.max_steps, **cfg["env"]))
+    check_memory(cfg)
     return cfg
+
+
+def check_memory(cfg: dict) -> None:
+    """--trials and --layouts against this machine's memory (trial_memory): one rollout's trials at a time,
+    started from states (the perturbations' plants, the trips' layouts); rows are summaries only."""
+    from docrl_jax.evaluate import trial_memory
+    need = trial_memory.Need(cfg["max_steps"], from_states=True)
+    free = trial_memory.free_memory()
+    if any(t in cfg["tests"] for t in ("perturbations", "random_trips", "tanks")):
+        trial_memory.check("--trials", cfg["trials"], need, free=free)
+    if any(t in cfg["tests"] for t in ("held_out_layouts", "structured")):
+        trial_memory.check("--layouts", cfg["layouts"], need, unit="layouts", free=free)
 
 
 def _scenarios_run(cfg: dict) -> list[int]:

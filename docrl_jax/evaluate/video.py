@@ -272,7 +272,22 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         from docrl_jax.evaluate.tank_sets import check
         cfg["tank_names"] = check(args.tank, rollout.eval_params(0, args.max_steps, **env))
     check_out(out, folder=False)   # its missing folders are made when it is written
+    check_memory(args, rollout.eval_params(scenario, args.max_steps, **env).observation_size)
     return cfg
+
+
+def check_memory(args: argparse.Namespace, ranges: int) -> None:
+    """--trials (and --of) against this machine's memory (trial_memory): each trial's records and, at
+    most, a frame every --every steps, kept whole and once more joined (a GIF's palette images besides;
+    --guide sensors draws the own map beside each)."""
+    from docrl_jax.evaluate import trial_memory
+    frames = -(-(args.max_steps + 1) // args.every)
+    frame = args.width * args.height * (3 * 2 + 1) * (2 if args.guide == "sensors" else 1)
+    start = args.tank is not None or args.guide is not None
+    trial_memory.check("--trials", args.trials, trial_memory.Need(args.max_steps, from_states=start,
+                                                                  render_ranges=ranges, frame_bytes=frames * frame))
+    if args.of is not None:
+        trial_memory.check("--of", args.of, trial_memory.Need(args.max_steps, from_states=start, render_ranges=ranges))
 
 
 def import_mujoco() -> None:
