@@ -115,6 +115,12 @@ def test_evaluate_tank_prints_and_writes_a_table_per_tank(evaluated):
     assert meta["tank"] == str(evaluated[0].parent / "set") and meta["tank_names"] == ["wall", "open"]
     assert sorted(p.name for p in out.glob("trajectory_*.png")) == [
         f"trajectory_s0_{d}_{t}.png" for d in ("air_to_water", "water_to_air") for t in ("open", "wall")]
+    # the tables are the tank set's, not a "scenario 0" the command refuses; the closing line names every file
+    for text in (printed, (out / "results.md").read_text()):
+        assert f"### Tanks: {evaluated[0].parent / 'set'}" in text and "Scenario 0" not in text
+    closing = printed.strip().splitlines()[-1]
+    listed = closing.split(": ", 1)[1].rsplit(" (", 1)[0].split(", ")
+    assert closing.startswith(f"wrote {out}/: ") and sorted(listed) == sorted(p.name for p in out.iterdir()), closing
 
 
 def test_starts_and_goals_lie_in_each_tanks_regions(evaluated):
