@@ -83,7 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
                            "mod the set's size", metavar="PATH|DIR|NAME")
     p.add_argument("--quick", action="store_true",
                    help=f"a small sweep: {QUICK['trials']} trials, {QUICK['layouts']} layouts and each perturbation's "
-                        "strongest magnitude (--trials and --layouts still win)")
+                        "strongest magnitude (--trials and --layouts still win); where the tanks test has fewer trips "
+                        "than its set has tanks, as many tanks spread evenly over the set (said when it starts)")
     p.add_argument("--max-steps", type=int, default=500, help="step limit of a trial (default 500, the paper's)")
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0, the evaluator's)")
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
@@ -136,6 +137,8 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     cfg["out"] = output_dir(args.out)
     if cfg["tank"] is not None:   # a bad set: one line, before anything compiles
         cfg["tank_names"] = tank_sets.check(cfg["tank"], rollout.eval_params(0, args.max_steps, **cfg["env"]))
+        if args.quick and trials < len(cfg["tank_names"]):   # fewer trips than tanks: a sample of the whole set
+            cfg["tank_sample"] = tank_sets.spread(len(cfg["tank_names"]), trials).tolist()
     check_memory(cfg)
     return cfg
 
@@ -291,6 +294,7 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
         "bba_depth_phase": args.bba_depth_phase if args.policy else None, "guide": args.guide,
         "tests": cfg["tests"], "scenarios": cfg["scenarios"], "directions": cfg["directions"],
         "trials": cfg["trials"], "layouts": cfg["layouts"], "tank": cfg["tank"], "tank_names": cfg.get("tank_names"),
+        "tank_sample": None if cfg.get("tank_sample") is None else [cfg["tank_names"][i] for i in cfg["tank_sample"]],
         "max_steps": args.max_steps, "seed": args.seed,
         "quick": args.quick, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
         "vehicles": {m.label: m.vehicle for m in cfg["methods"]},
@@ -304,8 +308,20 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
     }
 
 
+def sample_line(cfg: dict) -> str | None:
+    """The line that says which tanks a --quick tanks test flies, where it flies a sample of its set."""
+    sample = cfg.get("tank_sample")
+    if sample is None:
+        return None
+    names = cfg["tank_names"]
+    return (f"--quick: the tanks test flies {len(sample)} of the {len(names)} tanks of {cfg['tank']}, spread evenly "
+            f"over the set: {', '.join(names[i] for i in sample)}")
+
+
 def _benchmark(args, cfg: dict, argv: Sequence[str] | None) -> int:
     t0 = time.time()
+    if sample_line(cfg):
+        print(sample_line(cfg), flush=True)
     rows = robustness.run_benchmark(cfg["methods"], cfg, report=lambda line: print(line, flush=True))
     meta = metadata(args, cfg, argv, time.time() - t0)
     paths = report_files.write_outputs(cfg["out"], rows, meta, PERTURBATIONS)
