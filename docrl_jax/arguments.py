@@ -1,7 +1,8 @@
 """What every command line of the package shares: the one-line parser errors (`OneLineParser`,
-`UsageError`), the help's wrapping, the program name a command shows (`prog`), and the check of
-an output path (`check_out`), so that each problem reads the same in every command. (A --tank is
-checked by docrl_jax.evaluate.tank_sets.check, which loads it.)
+`UsageError`), the help's wrapping, the program name a command shows (`prog`), a list of exact names
+(`parse_names`, naming the nearest of an unknown one) and the check of an output path (`check_out`),
+so that each problem reads the same in every command. The flags several commands share are defined
+once in docrl_jax.flags; a --tank is checked by docrl_jax.evaluate.tank_sets.check, which loads it.
 
 Light on purpose (the standard library only): a command builds its parser and answers --help before
 it imports JAX, MuJoCo or Flax.
