@@ -64,7 +64,8 @@ def test_render_takes_the_evaluator_s_flags_with_one_value():
         assert (args.scenarios, args.directions) == ("3", "A-W")
         assert flags.parse_scenarios(args.scenarios, one="render") == [3]
         assert flags.parse_directions(args.directions, extra=("random",), one="render") == ["air_to_water"]
-    with pytest.raises(UsageError, match=r"^--scenarios 1,2: render draws one scenario; give one \(e.g. --scenarios 1\)$"):
+    with pytest.raises(UsageError, match=r"^--scenarios 1,2: render draws one scenario; give one "
+                                         r"\(e.g. --scenarios 1\)$"):
         flags.parse_scenarios("1,2", one="render")
     with pytest.raises(UsageError, match=r"^--directions W-A,random: render draws one direction"):
         flags.parse_directions("W-A,random", extra=("random",), one="render")
@@ -77,7 +78,8 @@ def test_render_takes_the_evaluator_s_flags_with_one_value():
 
 
 @pytest.mark.parametrize("argv, line", [
-    (["--scenarios", "1,2", "--out", "v.gif"], "--scenarios 1,2: render draws one scenario; give one (e.g. --scenarios 1)"),
+    (["--scenarios", "1,2", "--out", "v.gif"], "--scenarios 1,2: render draws one scenario; give one "
+                                               "(e.g. --scenarios 1)"),
     (["--directions", "A-W,W-A", "--out", "v.gif"], "--directions A-W,W-A: render draws one direction"),
     (["--scenario", "4", "--out", "v.gif"], "--scenarios '4': valid scenarios are 1, 2, 3"),
 ])

@@ -138,7 +138,8 @@ def build_parser() -> argparse.ArgumentParser:
     flags.add(src, "--run", "; several run directories of one config (separate launches, e.g. one per seed) are "
                             "evaluated as the seeds of one method", metavar="RUN_DIR", nargs="+")
     flags.add(src, "--policy", f": {', '.join(pretrained.POLICY_NAMES)} (the behaviour-based baseline, then the "
-                               "trained policies shipped in the package, docrl_jax/pretrained/README.md)", metavar="NAME")
+                               "trained policies shipped in the package, docrl_jax/pretrained/README.md)",
+              metavar="NAME")
     p.add_argument("--seed-index", default="all",
                    help="seed(s) of --run to evaluate, comma-separated, e.g. 0 or 0,1,2; default 'all': every seed "
                         "the run trained (train.num_seeds in its config.yaml). Several seeds also give a table of "

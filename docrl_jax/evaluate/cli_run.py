@@ -107,10 +107,10 @@ def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
                 f"{row['method']}{tag}, {SHORT[row['direction']]}", args.figures) if p is not None)
         elif args.figures > 0:
             from docrl_jax.evaluate import plotting
-            written.append(plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"], trials["outcome"],
-                                       start, goal, out_dir / f"trajectory_{stem}.png",
-                                       title=f"{row['method']}{tag}, scenario {row['scenario']}, "
-                                             f"{SHORT[row['direction']]}", max_trajectories=args.figures))
+            written.append(plotting.plot_trajectories(
+                env.mj_model, trials["positions"], trials["steps"], trials["outcome"], start, goal,
+                out_dir / f"trajectory_{stem}.png", title=f"{row['method']}{tag}, scenario {row['scenario']}, "
+                                                          f"{SHORT[row['direction']]}", max_trajectories=args.figures))
 
     for scenario in cfg["scenarios"]:
         for seed_index, (run, run_seed) in zip(seed_indices, sources):

@@ -79,8 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "each way of the tanks test (default 100)", default=None)
     p.add_argument("--layouts", type=int, default=None,
                    help="held-out layouts and held-out structured layouts, one trip each way in each (default 1000)")
-    flags.add(p, "--tank", f": the tanks test's set (default {DEFAULT_TANK}); --trials trips each way, trip i in tank i "
-                           "mod the set's size", metavar="PATH|DIR|NAME")
+    flags.add(p, "--tank", f": the tanks test's set (default {DEFAULT_TANK}); --trials trips each way, trip i in "
+                           "tank i mod the set's size", metavar="PATH|DIR|NAME")
     p.add_argument("--quick", action="store_true",
                    help=f"a small sweep: {QUICK['trials']} trials, {QUICK['layouts']} layouts and each perturbation's "
                         "strongest magnitude (--trials and --layouts still win); where the tanks test has fewer trips "

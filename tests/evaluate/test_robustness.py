@@ -129,7 +129,8 @@ def test_settings_and_host():
                                                    "held_out_layouts"),
     # names are exact: a test's name in the singular is no alias of it
     (["--policy", "bba", "--tests", "tank"], "unknown test 'tank'; valid tests: perturbations, random_trips, "
-                                            "held_out_layouts, structured, tanks (comma-separated); did you mean 'tanks'?"),
+                                            "held_out_layouts, structured, tanks (comma-separated); did you mean "
+                                            "'tanks'?"),
     (["--policy", "bba", "--scenarios", "0"], "valid scenarios are 1, 2, 3"),
     (["--policy", "bba", "--directions", "up"], "air_to_water (A-W), water_to_air (W-A)"),
     (["--policy", "bba", "--layouts", "0"], "--layouts 0: must be in 1..10000"),
