@@ -1,7 +1,8 @@
 """What every command line of the package shares: the one-line parser errors (`OneLineParser`,
-`UsageError`), the help's wrapping, the program name a command shows (`prog`), and the check of
-an output path (`check_out`), so that each problem reads the same in every command. (A --tank is
-checked by docrl_jax.evaluate.tank_sets.check, which loads it.)
+`UsageError`), the help's wrapping, the program name a command shows (`prog`), a list of exact names
+(`parse_names`, naming the nearest of an unknown one) and the check of an output path (`check_out`),
+so that each problem reads the same in every command. The flags several commands share are defined
+once in docrl_jax.flags; a --tank is checked by docrl_jax.evaluate.tank_sets.check, which loads it.
 
 Light on purpose (the standard library only): a command builds its parser and answers --help before
 it imports JAX, MuJoCo or Flax.
@@ -67,6 +68,21 @@ def prog(command: str) -> str:
     'python -m docrl_jax evaluate', 'python -m docrl_jax.evaluate')."""
     top = launcher()
     return f"{top} {command}" if top else f"python -m docrl_jax.{command}"
+
+
+def parse_names(flag: str, text: str, valid, noun: str, hint: str = "") -> list[str]:
+    """A comma-separated list of names, each exactly one of `valid` (no prefix or alias matching: 'tank'
+    is not 'tanks'), without repeats, in the order given. UsageError naming the first unknown one, the
+    valid names and the nearest ('--tests 'tank': unknown test 'tank'; valid tests: ...; did you mean
+    'tanks'?'). `hint` follows the valid names."""
+    from docrl_jax.schema import did_you_mean
+    valid = list(valid)
+    names = [t.strip() for t in str(text).split(",") if t.strip()]
+    bad = [n for n in names if n not in valid] or ([] if names else [str(text)])
+    if bad:
+        raise UsageError(f"{flag} {text!r}: unknown {noun} {bad[0]!r}; valid {noun}s: {', '.join(valid)}{hint}"
+                         f"{did_you_mean(bad[0], valid)}")
+    return list(dict.fromkeys(names))
 
 
 def check_out(path: str | Path, flag: str = "--out", folder: bool = True, parents: bool = True) -> Path:

@@ -39,6 +39,10 @@ from docrl_jax.envs import ACTION_SIZE
 CRITIC_ACTIVATION_FACTOR = {True: 8, False: 4}  # critic_layer_norm -> factor
 # The estimate counts 4 bytes per activation whatever agent.critic_dtype is: with bfloat16 critics it
 # over-estimates (td3_lstm's measured peak fell from 0.77 to 0.68 GiB), which errs on the safe side.
+# Bytes of one environment of the vectorised step, per seed: its state (2.7 KB in a paper scenario,
+# 6.1 KB with a tank layout beside it) and its share of the step's working memory (the evaluator's
+# rollout of the same env step and actor measured 12.6 KB a trial: docrl_jax/evaluate/trial_memory.py).
+ENV_BYTES = 20_000
 
 
 def carry_size(c: Config) -> int:
@@ -83,6 +87,11 @@ def critic_activation_bytes(c: Config) -> int:
     return c.replay.batch_size * trained * sum(c.agent.critic_hidden) * 4 * critics * factor
 
 
+def env_bytes(c: Config) -> int:
+    """Estimated bytes of the environments of one seed's vectorised step: env.num_envs x ENV_BYTES."""
+    return c.env.num_envs * ENV_BYTES
+
+
 def update_bytes(c: Config) -> int:
     """Estimated bytes the gradient updates need beyond the replay buffers, one seed: the batches of a
     vectorised step's updates, drawn together (docrl_jax.train.trainer), and one update's activations."""
@@ -100,14 +109,24 @@ def available_device_bytes(device=None) -> tuple[int | None, str]:
         if "bytes_limit" in stats:
             return int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0)), f"{dev.device_kind} memory"
         return None, str(dev)
+    return available_host_bytes(), "available host RAM"
+
+
+def available_host_bytes() -> int | None:
+    """The host's available RAM (MemAvailable of /proc/meminfo; elsewhere the free pages the OS counts),
+    None where neither can be read."""
+    import os
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
                 if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024, "available host RAM"
+                    return int(line.split()[1]) * 1024
     except OSError:
         pass
-    return None, "host RAM"
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
 
 
 def seeds_per_memory(c: Config, devices: Sequence) -> int:
@@ -142,7 +161,8 @@ def check_memory(c: Config, devices: Sequence | None = None) -> None:
         raise ConfigError(
             f"replay buffers need {replay / 2**30:.2f} GiB ({held} x buffer_size={c.replay.buffer_size} steps "
             f"x {step_bytes(c)} bytes), more than the {free / 2**30:.2f} GiB of {what}; lower "
-            f"replay.buffer_size or train.num_seeds, or split the seeds over more devices (train.devices)")
+            f"replay.buffer_size (auto: steps per env x env.num_envs={c.env.num_envs}) or "
+            f"train.num_seeds, or split the seeds over more devices (train.devices)")
     update = update_bytes(c) * seeds
     if replay + update > free:
         r = c.replay
@@ -155,6 +175,14 @@ def check_memory(c: Config, devices: Sequence | None = None) -> None:
             f"{(replay + update) / 2**30:.2f} GiB in all, more than the {free / 2**30:.2f} GiB of {what}; "
             f"lower replay.batch_size (or replay.seq_len, agent.critic_hidden), replay.buffer_size or "
             f"train.num_seeds, or split the seeds over more devices (train.devices)")
+    envs = env_bytes(c) * seeds
+    if replay + update + envs > free:
+        most = max(0, int((free - replay - update) // (ENV_BYTES * seeds)))
+        raise ConfigError(
+            f"env.num_envs={c.env.num_envs}: the environments need an estimated {envs / 2**30:.2f} GiB ({held} x "
+            f"num_envs x ~{ENV_BYTES // 1000} KB: each env's state and its share of a vectorised step) beside "
+            f"{(replay + update) / 2**30:.2f} GiB of replay buffers and updates, more than the {free / 2**30:.2f} GiB "
+            f"of {what}: at most ~{most} envs fit; lower env.num_envs or train.num_seeds")
 
 
 # The name config.py exported before this module existed; same check.

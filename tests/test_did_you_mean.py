@@ -108,3 +108,30 @@ def test_the_trainer_prints_one_line_and_exits_2(argv, line, capsys, tmp_path):
     out = capsys.readouterr()
     assert out.out.strip().splitlines() == [out.out.strip()] and out.out.strip().endswith(line), out
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("command, argv, line", [
+    ("evaluate", ["--policy", "td3_lsmt"], "--policy 'td3_lsmt': unknown policy; valid choices: bba, td3_lstm, "
+     "sac_lstm, sac_mlp, sac_mlp_generalist, sac_mlp_tanks (or --run RUN_DIR for a trained agent); did you mean "
+     "'td3_lstm'?"),
+    ("render", ["--policy", "sac_mpl"], "did you mean 'sac_mlp'?"),
+    ("export", ["--policy", "sac_lsmt", "--out", "x"], "did you mean 'sac_lstm'?"),
+    ("evaluate", ["--policy", "bba", "--env", "wnd=false"], "--env 'wnd': unknown env parameter; valid names: the "
+     "fields of EnvParams in docrl_jax/envs/param_fields.py; did you mean 'wind'?"),
+    ("robustness", ["--policy", "bba", "--tests", "tank", "--out", "x"], "--tests 'tank': unknown test 'tank'; "
+     "valid tests: perturbations, random_trips, held_out_layouts, structured, tanks (comma-separated); did you "
+     "mean 'tanks'?"),
+    ("robustness", ["--policy", "bba", "--perturbations", "motor_lag,wind_gust", "--out", "x"],
+     "unknown perturbation 'wind_gust'; valid perturbations: wind_gusts, "),
+])
+def test_every_name_a_user_types_names_the_nearest(command, argv, line, tmp_path):
+    """Through the `docrl` command line, as a user meets it: one line, exit status 2, nothing written."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, "-m", "docrl_jax", command, *argv], capture_output=True, text=True,
+                          cwd=tmp_path, env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    err = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(err) == 1 and line in err[0], proc.stderr
+    if "unknown perturbation" in line:
+        assert err[0].endswith("did you mean 'wind_gusts'?")
+    assert not list(tmp_path.iterdir())

@@ -78,7 +78,7 @@ FLOORS = [
      "docrl_jax.baselines"],
     ["docrl_jax.checkpoint", "docrl_jax.memory"],
     ["docrl_jax.runs", "docrl_jax.pretrained"],
-    ["docrl_jax.evaluate", "docrl_jax.export"],
+    ["docrl_jax.evaluate", "docrl_jax.export", "docrl_jax.flags"],
     ["docrl_jax.train"],
     ["docrl_jax.sweep", "docrl_jax.compare", "docrl_jax.plotting", "docrl_jax"],   # command names, the package
 ]

@@ -57,6 +57,20 @@ def test_the_estimate_scales_with_the_seeds_each_device_holds(monkeypatch):
         memory.check_memory(three, devices=jax.devices()[:1])
 
 
+def test_too_many_envs_are_refused_naming_how_many_fit(monkeypatch):
+    """The environments of a vectorised step grow with env.num_envs beside a buffer of a set size."""
+    many = load_config("td3_lstm", ["env.num_envs=1000000", "replay.buffer_size=20000000"], backend="gpu")
+    assert memory.env_bytes(many) == 1_000_000 * memory.ENV_BYTES
+    fixed = memory.replay_bytes(many) + memory.update_bytes(many)
+    _free(monkeypatch, (fixed + 100_500 * memory.ENV_BYTES) / GIB)   # room for ~100,500 envs beside the buffer
+    with pytest.raises(ConfigError, match=r"^env.num_envs=1000000: the environments need an estimated 18\.63 GiB "
+                                          r"\(num_seeds=1 x num_envs x ~20 KB: .*: at most ~100(499|500) envs fit; "
+                                          r"lower env.num_envs or train.num_seeds$"):
+        memory.check_memory(many, devices=jax.devices()[:1])
+    memory.check_memory(load_config("td3_lstm", ["env.num_envs=100000", "replay.buffer_size=20000000"],
+                                    backend="gpu"), devices=jax.devices()[:1])
+
+
 def test_the_batch_check_also_runs_on_configs_built_without_validation():
     import dataclasses
     ok = load_config("td3_lstm", ["env.num_envs=4", "replay.buffer_size=256", "replay.batch_size=196"])

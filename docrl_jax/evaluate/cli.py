@@ -23,7 +23,7 @@ from typing import Any, Sequence
 
 import yaml
 
-from docrl_jax import pretrained
+from docrl_jax import flags, pretrained
 from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
 from docrl_jax.errors import RunDirError, os_error_line
 from docrl_jax.evaluate.tank_sets import TankSetError
@@ -70,27 +70,6 @@ def check_guide(args: argparse.Namespace) -> None:
                          "from the env: drop --guide, or give --run RUN_DIR or a shipped --policy")
 
 
-def parse_scenarios(text: str) -> list[int]:
-    try:
-        vals = [int(t) for t in text.split(",") if t.strip() != ""]
-    except ValueError:
-        raise UsageError(f"--scenarios {text!r}: valid scenarios are 1, 2, 3 (comma-separated, e.g. 1,2,3)") from None
-    bad = [v for v in vals if v not in SCENARIOS]
-    if not vals or bad:
-        raise UsageError(f"--scenarios {text!r}: valid scenarios are 1, 2, 3 (comma-separated, e.g. 1,2,3)")
-    return sorted(set(vals))
-
-
-def parse_directions(text: str) -> list[str]:
-    aliases = {"a-w": "air_to_water", "w-a": "water_to_air", "air_to_water": "air_to_water",
-               "water_to_air": "water_to_air"}
-    vals = [t.strip().lower() for t in text.split(",") if t.strip()]
-    bad = [v for v in vals if v not in aliases]
-    if not vals or bad:
-        raise UsageError(f"--directions {text!r}: valid directions are air_to_water (A-W), water_to_air (W-A)")
-    return list(dict.fromkeys(aliases[v] for v in vals))
-
-
 # Env parameters the evaluator sets itself.
 _EVALUATOR_KEYS = {"terminate_on_arrival": "--max-steps", "max_episode_steps": "--max-steps",
                    "scenario": "--scenarios", "tank": "--tank"}
@@ -132,7 +111,10 @@ def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARI
         k, v = item.split("=", 1)
         k = k.strip()
         if k not in valid:
-            raise UsageError(f"--env {k!r}: unknown env parameter; valid names: {', '.join(sorted(valid))}")
+            from docrl_jax.envs.params import EnvParams
+            from docrl_jax.schema import declared_in, did_you_mean
+            raise UsageError(f"--env {k!r}: unknown env parameter; valid names: the fields of EnvParams in "
+                             f"{declared_in(EnvParams)}{did_you_mean(k, valid)}")
         if k in _EVALUATOR_KEYS:
             raise UsageError(f"--env {k}: set by the evaluator (use {_EVALUATOR_KEYS[k]})")
         out[k], typed[k] = parse_env_value(v), v
@@ -153,12 +135,11 @@ def parse_env_overrides(items: Sequence[str], scenarios: Sequence[int] = SCENARI
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=prog("evaluate"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--run", metavar="RUN_DIR", nargs="+",
-                     help="a trainer run directory (config.yaml + checkpoints); several run directories of one "
-                          "config (separate launches, e.g. one per seed) are evaluated as the seeds of one method")
-    src.add_argument("--policy", metavar="NAME",
-                     help=f"a built-in policy: {', '.join(pretrained.POLICY_NAMES)} (the behaviour-based baseline, then "
-                          "the trained policies shipped in the package, docrl_jax/pretrained/README.md)")
+    flags.add(src, "--run", "; several run directories of one config (separate launches, e.g. one per seed) are "
+                            "evaluated as the seeds of one method", metavar="RUN_DIR", nargs="+")
+    flags.add(src, "--policy", f": {', '.join(pretrained.POLICY_NAMES)} (the behaviour-based baseline, then the "
+                               "trained policies shipped in the package, docrl_jax/pretrained/README.md)",
+              metavar="NAME")
     p.add_argument("--seed-index", default="all",
                    help="seed(s) of --run to evaluate, comma-separated, e.g. 0 or 0,1,2; default 'all': every seed "
                         "the run trained (train.num_seeds in its config.yaml). Several seeds also give a table of "
@@ -167,25 +148,21 @@ def build_parser() -> argparse.ArgumentParser:
     add_which_argument(p)
     add_guide_argument(p)
     p.add_argument("--label", help="method name in the tables (default: the --policy name, 'BBA' for bba, or the run dir's name)")
-    p.add_argument("--trials", type=int, default=100, help="trials per scenario and direction (default 100)")
-    p.add_argument("--scenarios", default=None, help="comma-separated scenarios (default 1,2,3)")
-    p.add_argument("--tank", metavar="PATH|DIR|NAME",
-                   help="instead of the scenarios' paper pairs, trials in a tank set: a tank file, a folder of them, a "
-                        "packaged tank's name, or gallery (every packaged tank; docs/TANKS.md). --trials per "
-                        "direction, trial i in tank i mod the set's size, from a random start in the start medium's "
-                        "region to a random goal in the other's, random yaw; a table per tank (printed, tanks.csv)")
-    p.add_argument("--directions", default="air_to_water,water_to_air",
-                   help="comma-separated: air_to_water (A-W), water_to_air (W-A) (default both)")
+    flags.add(p, "--trials", " per scenario and direction (default 100)", default=100)
+    flags.add(p, "--scenarios", " (default 1,2,3)", default=None)
+    flags.add(p, "--tank", ", in place of the scenarios' paper pairs: --trials per direction, trial i in tank i mod "
+                           "the set's size, from a random start in the start medium's region to a random goal in the "
+                           "other's, random yaw; a table per tank (printed, tanks.csv)", metavar="PATH|DIR|NAME")
+    flags.add(p, "--directions", " (default both)", default="air_to_water,water_to_air")
     p.add_argument("--max-steps", type=int, default=500, help="step limit of a trial (default 500, the paper's)")
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0)")
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
                    help="env parameter override (repeatable), e.g. hull_volume=4e-5, water_current=(0.1,0,0) or "
                         f"[0.1,0,0], wind=false; checked before anything runs; defaults here: {DEFAULT_EVAL_ENV}")
     p.add_argument("--bba-depth-phase", default="after", help="BBA only, order of the depth phase: after (default, the DoCRL script), first (the JINT copy), concurrent, in_air (climb first / descend last)")
-    p.add_argument("--out", metavar="DIR",
-                   help="output directory (results.md/.csv/.json, trials.csv, trajectories, figures). Default "
-                        "with --run: <first RUN_DIR>/evaluation; with --policy: none, the tables are printed and "
-                        "nothing is written; --curves needs --out (or --run)")
+    flags.add(p, "--out", ": a folder (results.md/.csv/.json, trials.csv, trajectories, figures). Default with "
+                          "--run: <first RUN_DIR>/evaluation; with --policy: none, the tables are printed and nothing "
+                          "is written; --curves needs --out (or --run)", metavar="DIR")
     p.add_argument("--figures", type=int, default=10, metavar="K",
                    help="trajectories drawn per figure (0 = no trajectory figures; default 10)")
     p.add_argument("--curves", nargs="+", metavar="RUN_DIR",
@@ -204,17 +181,13 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     if args.policy is not None:
         args.policy = pretrained.check_name(args.policy.lower())
     check_guide(args)
-    if args.trials <= 0:
-        raise UsageError(f"--trials {args.trials}: must be a positive integer")
-    if args.max_steps <= 0:
-        raise UsageError(f"--max-steps {args.max_steps}: must be a positive integer")
+    flags.check_positive("--trials", args.trials)
+    flags.check_positive("--max-steps", args.max_steps)
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
-    if args.tank is not None and args.scenarios is not None:
-        raise UsageError(f"--tank {args.tank} and --scenarios {args.scenarios}: a tank set's trials replace the "
-                         "scenarios' (they fly in scenario 0); give one of them")
-    scenarios = [0] if args.tank is not None else parse_scenarios(args.scenarios or "1,2,3")
-    cfg = {"scenarios": scenarios, "directions": parse_directions(args.directions),
+    flags.check_tank_or_scenarios(args.tank, args.scenarios)
+    scenarios = [0] if args.tank is not None else flags.parse_scenarios(args.scenarios or "1,2,3")
+    cfg = {"scenarios": scenarios, "directions": flags.parse_directions(args.directions),
            "env": parse_env_overrides(args.env, scenarios), "seed_indices": parse_seed_indices(args.seed_index),
            "out": output_dir(args)}
     cfg["tank"] = args.tank
@@ -242,7 +215,21 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
             raise UsageError(str(e)) from None
     if cfg["out"] is not None:
         check_out(cfg["out"])
+    check_memory(args, cfg)
     return cfg
+
+
+def check_memory(args: argparse.Namespace, cfg: dict[str, Any]) -> None:
+    """--trials against this machine's memory (trial_memory): a scenario's directions' trials held at once,
+    every evaluated trial's row of trials.csv until it is written."""
+    from docrl_jax.evaluate import trial_memory
+    from docrl_jax.evaluate.run_dirs import run_num_seeds
+    seeds = sum(len(cfg["seed_indices"]) if cfg["seed_indices"] is not None else run_num_seeds(run)
+                for run in args.run) if args.run else 1
+    pairs = len(cfg["scenarios"]) * len(cfg["directions"])
+    need = trial_memory.Need(args.max_steps, held=len(cfg["directions"]), rows=pairs * seeds,
+                             from_states=args.tank is not None or args.guide is not None)
+    trial_memory.check("--trials", args.trials, need)
 
 
 def output_dir(args: argparse.Namespace) -> Path | None:

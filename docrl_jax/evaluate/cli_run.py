@@ -46,6 +46,7 @@ def load_policy_for(args, env, seed_index: int, run: str | None = None) -> tuple
 def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
     """Runs what the checked arguments ask for: curves, then the protocol's trials; writes the outputs."""
     out_dir = cfg["out"]
+    written: list[Path] = []   # every file written, named by the closing line
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
     if args.curves:
@@ -53,7 +54,9 @@ def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
         csvs = [curves.find_metrics_csv(d) for d in args.curves]
         paths = curves.plot_learning_curves(csvs, out_dir)
         print("learning curves:", ", ".join(str(p) for p in paths))
+        written += paths
     if args.run is None and args.policy is None:
+        print(wrote(out_dir, written))
         return 0
 
     import jax
@@ -97,15 +100,17 @@ def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
         np.savez_compressed(out_dir / f"trajectories_{stem}.npz", positions=trials["positions"].astype(np.float32),
                             steps=trials["steps"], outcome=trials["outcome"], start=np.asarray(start),
                             goal=np.asarray(goal), **extra)
+        written.append(out_dir / f"trajectories_{stem}.npz")
         if args.figures > 0 and args.tank:
-            tank_trials.plot_flown(out_dir / f"trajectory_{stem}", stack, cfg["tank_names"], trials,
-                                   f"{row['method']}{tag}, {SHORT[row['direction']]}", args.figures)
+            written.extend(p for p in tank_trials.plot_flown(
+                out_dir / f"trajectory_{stem}", stack, cfg["tank_names"], trials,
+                f"{row['method']}{tag}, {SHORT[row['direction']]}", args.figures) if p is not None)
         elif args.figures > 0:
             from docrl_jax.evaluate import plotting
-            plotting.plot_trajectories(env.mj_model, trials["positions"], trials["steps"], trials["outcome"],
-                                       start, goal, out_dir / f"trajectory_{stem}.png",
-                                       title=f"{row['method']}{tag}, scenario {row['scenario']}, "
-                                             f"{SHORT[row['direction']]}", max_trajectories=args.figures)
+            written.append(plotting.plot_trajectories(
+                env.mj_model, trials["positions"], trials["steps"], trials["outcome"], start, goal,
+                out_dir / f"trajectory_{stem}.png", title=f"{row['method']}{tag}, scenario {row['scenario']}, "
+                                                          f"{SHORT[row['direction']]}", max_trajectories=args.figures))
 
     for scenario in cfg["scenarios"]:
         for seed_index, (run, run_seed) in zip(seed_indices, sources):
@@ -148,15 +153,26 @@ def evaluate(args, cfg: dict, parser, argv: Sequence[str] | None) -> int:
                                for t in trial_table(method, scenario, row["direction"], trials)]
     meta["wall_time_s"] = round(time.time() - t_start, 2)
     aggs = aggregate_seeds(rows) if args.run is not None else []
-    print(markdown_table(rows, paper=args.tank is None, seed_rows=aggs))
+    print(markdown_table(rows, paper=args.tank is None, seed_rows=aggs, tank=args.tank))
     if args.tank is not None:
         print(tank_trials.markdown(tank_rows, args.tank))
     if out_dir is None:
         print(f"nothing written: pass --out DIR to keep the tables, trials and figures ({meta['wall_time_s']} s)")
         return 0
     write_outputs(out_dir, rows, trial_rows, meta, aggs)
-    tanks = ", " + ", ".join(p.name for p in tank_trials.write(out_dir, tank_rows, args.tank)) if args.tank else ""
-    print(f"wrote {out_dir}/results.md, results.csv, results.json, trials.csv{tanks} ({meta['wall_time_s']} s)")
+    written[:0] = [out_dir / name for name in ("results.md", "results.csv", "results.json", "trials.csv")]
+    if args.tank:
+        written[4:4] = tank_trials.write(out_dir, tank_rows, args.tank)
+    print(f"{wrote(out_dir, written)} ({meta['wall_time_s']} s)")
     return 0
+
+
+def wrote(out_dir: Path | None, paths: Sequence[Path]) -> str:
+    """The closing line: every file the command wrote, named within its folder ('wrote DIR/: a, b, c')."""
+    if not paths:
+        return "nothing written"
+    names = [str(p.relative_to(out_dir)) if out_dir is not None and p.is_relative_to(out_dir) else str(p)
+             for p in paths]
+    return f"wrote {out_dir}/: {', '.join(names)}"
 
 

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from docrl_jax import flags
 from docrl_jax.arguments import OneLineParser, check_out, prog
 from docrl_jax.evaluate import paper_results
 from docrl_jax.evaluate.protocol import DIRECTIONS
@@ -107,7 +108,7 @@ def side_by_side_markdown(aggs: list[dict]) -> str:
 def build_parser() -> OneLineParser:
     ap = OneLineParser(prog=prog("compare"), description=__doc__.split("\n\n")[0])
     ap.add_argument("evals", nargs="+", help="evaluation output directories (or their results.json)")
-    ap.add_argument("--out", help="write the Markdown here (default: print only)")
+    flags.add(ap, "--out", ": a file, the Markdown (default: print only)", metavar="FILE")
     return ap
 
 

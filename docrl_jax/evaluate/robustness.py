@@ -188,16 +188,17 @@ class Method:
     shipped: str | None = None        # a shipped policy's name (docrl_jax.pretrained)
 
 
-def trip_layouts(test: str, params, count: int, tank: str | None):
+def trip_layouts(test: str, params, count: int, tank: str | None, sample=None):
     """The layouts of the trips of `test` (one per trip, stacked), or None (random trips: the
-    scenario's own tank); with the tank set's names for `tanks`."""
+    scenario's own tank); with the tank set's names for `tanks` (`sample`: the tanks flown, indices
+    into the set; None: all)."""
     from docrl_jax.evaluate import tank_sets
     if test == "held_out_layouts":
         return held_out_layouts(params, count), None
     if test == "structured":
         return structured_layouts(params, count), None
     if test == "tanks":
-        names, stack = tank_sets.load(tank, params)
+        names, stack = tank_sets.pick(*tank_sets.load(tank, params), sample)
         return tank_sets.repeat(stack, count), names
     return None, None
 
@@ -208,7 +209,8 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
     (tank: "" but for the tanks test's rows, "all" over the set and one per tank flown).
 
     `cfg`: tests, scenarios, directions, settings (`sweep_settings`), env (overrides under every
-    test, on top of each method's vehicle), trials, layouts, tank (the tanks test's set), max_steps,
+    test, on top of each method's vehicle), trials, layouts, tank (the tanks test's set; tank_sample: the
+    indices of its tanks flown, None for all), max_steps,
     seed, which and bba_depth_phase (how the policies load). `report(line)` gets a line per row."""
     from docrl_jax.evaluate import tank_sets
     steps, n = cfg["max_steps"], cfg["trials"]
@@ -258,7 +260,7 @@ def run_benchmark(methods: Sequence[Method], cfg: dict, report=print) -> list[di
                 for scenario in scenarios:
                     host = rollout.make_eval_env(scenario, steps, **host_kw)
                     nominal = rollout.eval_params(scenario, steps, **base)
-                    stack, names = trip_layouts(test, host.params, count, cfg.get("tank"))
+                    stack, names = trip_layouts(test, host.params, count, cfg.get("tank"), cfg.get("tank_sample"))
                     for direction in cfg["directions"]:
                         t0 = time.time()
                         start_w, goal_w = MEDIA[direction]

@@ -25,18 +25,15 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Sequence
 
-from docrl_jax.arguments import OneLineParser, check_out, prog
+from docrl_jax.arguments import OneLineParser, check_out, parse_names, prog
 from docrl_jax.errors import RunDirError, os_error_line
-from docrl_jax import pretrained
+from docrl_jax import flags, pretrained
 from docrl_jax.evaluate import cli, policies, robustness, rollout, run_dirs, tank_sets
 from docrl_jax.evaluate import robustness_report as report_files
 from docrl_jax.evaluate.protocol import DEFAULT_EVAL_ENV
 from docrl_jax.evaluate.robustness import ENVELOPE, PERTURBATIONS, TESTS, Method
 from docrl_jax.evaluate.rollout import MEDIA_KEYS
 
-TEST_ALIASES = {"perturbations": "perturbations", "sweeps": "perturbations", "random_trips": "random_trips",
-                "random": "random_trips", "held_out_layouts": "held_out_layouts", "layouts": "held_out_layouts",
-                "structured": "structured", "structures": "structured", "tanks": "tanks", "tank": "tanks"}
 DEFAULT_TANK = "gallery"   # the tanks test's set: every packaged tank
 QUICK = {"trials": 10, "layouts": 10}   # --quick: these counts and each perturbation's strongest magnitude
 
@@ -45,35 +42,27 @@ UsageError = cli.UsageError
 
 
 def parse_tests(text: str) -> list[str]:
-    vals = [t.strip().lower() for t in text.split(",") if t.strip()]
-    bad = [v for v in vals if v not in TEST_ALIASES]
-    if not vals or bad:
-        raise UsageError(f"--tests {text!r}: valid tests are {', '.join(TESTS)} (comma-separated; short: "
-                         "perturbations, random, layouts, structures, tank)")
-    return [t for t in TESTS if t in {TEST_ALIASES[v] for v in vals}]
+    """--tests: test names, exactly (docrl_jax.evaluate.robustness.TESTS), in the benchmark's order."""
+    chosen = parse_names("--tests", text.lower(), TESTS, "test", " (comma-separated)")
+    return [t for t in TESTS if t in chosen]
 
 
 def parse_perturbations(text: str) -> list[str]:
+    """--perturbations: names of the envelope, all or none."""
     text = text.strip().lower()
     if text == "all":
         return list(PERTURBATIONS)
     if text == "none":
         return []
-    vals = [t.strip() for t in text.split(",") if t.strip()]
-    bad = [v for v in vals if v not in PERTURBATIONS]
-    if not vals or bad:
-        raise UsageError(f"--perturbations {text!r}: valid names are {', '.join(PERTURBATIONS)} (comma-separated), "
-                         "all or none")
-    return list(dict.fromkeys(vals))
+    return parse_names("--perturbations", text, PERTURBATIONS, "perturbation", " (comma-separated), all or none")
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=prog("robustness"), description=__doc__.split("\n\n")[0])
-    p.add_argument("--run", metavar="RUN_DIR", nargs="+", action="append",
-                   help="a trainer run directory, or several of one config (separate launches: the method's seeds); "
-                        "give --run again for another method beside it")
-    p.add_argument("--policy", metavar="NAME", help="a policy beside the runs: a shipped one (docrl_jax/pretrained) "
-                   "or the baseline bba")
+    flags.add(p, "--run", ", or several of one config (separate launches: the method's seeds); give --run again for "
+                          "another method beside it", metavar="RUN_DIR", nargs="+", action="append")
+    flags.add(p, "--policy", f" beside the runs: {', '.join(pretrained.POLICY_NAMES)} (the baseline bba, or a policy "
+                             "shipped in the package, docrl_jax/pretrained)", metavar="NAME")
     p.add_argument("--label", action="append", metavar="NAME",
                    help="a method's name in the tables, once per method in order (each --run, then --policy)")
     p.add_argument("--seed-index", default="all",
@@ -84,28 +73,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tests", default=",".join(TESTS), help=f"comma-separated: {', '.join(TESTS)} (default all)")
     p.add_argument("--perturbations", default="all",
                    help=f"comma-separated names of the envelope ({', '.join(PERTURBATIONS)}), all (default) or none")
-    p.add_argument("--scenarios", default="1,2,3",
-                   help="scenarios of the perturbations and random trips (default 1,2,3)")
-    p.add_argument("--directions", default="air_to_water,water_to_air",
-                   help="comma-separated: air_to_water (A-W), water_to_air (W-A) (default both)")
-    p.add_argument("--trials", type=int, default=None,
-                   help="trials per scenario, direction and setting of the perturbations and random trips, and "
-                        "trips each way of the tanks test (default 100)")
+    flags.add(p, "--scenarios", " of the perturbations and random trips (default 1,2,3)", default="1,2,3")
+    flags.add(p, "--directions", " (default both)", default="air_to_water,water_to_air")
+    flags.add(p, "--trials", " per scenario, direction and setting of the perturbations and random trips, and trips "
+                             "each way of the tanks test (default 100)", default=None)
     p.add_argument("--layouts", type=int, default=None,
                    help="held-out layouts and held-out structured layouts, one trip each way in each (default 1000)")
-    p.add_argument("--tank", metavar="PATH|DIR|NAME",
-                   help=f"the tanks test's set: a tank file, a folder of them, a packaged tank's name or gallery "
-                        f"(default {DEFAULT_TANK}: every packaged tank); --trials trips each way, trip i in tank i "
-                        "mod the set's size")
+    flags.add(p, "--tank", f": the tanks test's set (default {DEFAULT_TANK}); --trials trips each way, trip i in "
+                           "tank i mod the set's size", metavar="PATH|DIR|NAME")
     p.add_argument("--quick", action="store_true",
                    help=f"a small sweep: {QUICK['trials']} trials, {QUICK['layouts']} layouts and each perturbation's "
-                        "strongest magnitude (--trials and --layouts still win)")
+                        "strongest magnitude (--trials and --layouts still win); where the tanks test has fewer trips "
+                        "than its set has tanks, as many tanks spread evenly over the set (said when it starts)")
     p.add_argument("--max-steps", type=int, default=500, help="step limit of a trial (default 500, the paper's)")
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of the trials (default 0, the evaluator's)")
     p.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
                    help="env parameter override under every test (repeatable), as for python -m docrl_jax.evaluate")
-    p.add_argument("--out", metavar="DIR",
-                   help="output folder: robustness.csv, .json, .md, .png (its parent must exist)")
+    flags.add(p, "--out", ": a folder, robustness.csv, .json, .md, .png (its parent must exist)", metavar="DIR")
     p.add_argument("--list", action="store_true", help="print the perturbation envelope and exit")
     return p
 
@@ -128,13 +112,12 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     trials = args.trials if args.trials is not None else (QUICK["trials"] if args.quick else 100)
     num_layouts = args.layouts if args.layouts is not None else (QUICK["layouts"] if args.quick else 1000)
     for flag, value in (("--trials", trials), ("--max-steps", args.max_steps)):
-        if value <= 0:
-            raise UsageError(f"{flag} {value}: must be a positive integer")
+        flags.check_positive(flag, value)
     if not 0 < num_layouts <= HELD_OUT_IDS:
         raise UsageError(f"--layouts {num_layouts}: must be in 1..{HELD_OUT_IDS} (the held-out layout ids)")
     tests = parse_tests(args.tests)
-    scenarios = cli.parse_scenarios(args.scenarios)
-    cfg = {"tests": tests, "scenarios": scenarios, "directions": cli.parse_directions(args.directions),
+    scenarios = flags.parse_scenarios(args.scenarios)
+    cfg = {"tests": tests, "scenarios": scenarios, "directions": flags.parse_directions(args.directions),
            "trials": trials, "layouts": num_layouts, "seed_indices": cli.parse_seed_indices(args.seed_index),
            "perturbations": parse_perturbations(args.perturbations), "max_steps": args.max_steps, "seed": args.seed,
            "which": args.which, "bba_depth_phase": args.bba_depth_phase, "guide": args.guide}
@@ -154,7 +137,22 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     cfg["out"] = output_dir(args.out)
     if cfg["tank"] is not None:   # a bad set: one line, before anything compiles
         cfg["tank_names"] = tank_sets.check(cfg["tank"], rollout.eval_params(0, args.max_steps, **cfg["env"]))
+        if args.quick and trials < len(cfg["tank_names"]):   # fewer trips than tanks: a sample of the whole set
+            cfg["tank_sample"] = tank_sets.spread(len(cfg["tank_names"]), trials).tolist()
+    check_memory(cfg)
     return cfg
+
+
+def check_memory(cfg: dict) -> None:
+    """--trials and --layouts against this machine's memory (trial_memory): one rollout's trials at a time,
+    started from states (the perturbations' plants, the trips' layouts); rows are summaries only."""
+    from docrl_jax.evaluate import trial_memory
+    need = trial_memory.Need(cfg["max_steps"], from_states=True)
+    free = trial_memory.free_memory()
+    if any(t in cfg["tests"] for t in ("perturbations", "random_trips", "tanks")):
+        trial_memory.check("--trials", cfg["trials"], need, free=free)
+    if any(t in cfg["tests"] for t in ("held_out_layouts", "structured")):
+        trial_memory.check("--layouts", cfg["layouts"], need, unit="layouts", free=free)
 
 
 def _scenarios_run(cfg: dict) -> list[int]:
@@ -296,6 +294,7 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
         "bba_depth_phase": args.bba_depth_phase if args.policy else None, "guide": args.guide,
         "tests": cfg["tests"], "scenarios": cfg["scenarios"], "directions": cfg["directions"],
         "trials": cfg["trials"], "layouts": cfg["layouts"], "tank": cfg["tank"], "tank_names": cfg.get("tank_names"),
+        "tank_sample": None if cfg.get("tank_sample") is None else [cfg["tank_names"][i] for i in cfg["tank_sample"]],
         "max_steps": args.max_steps, "seed": args.seed,
         "quick": args.quick, "env_overrides": {**DEFAULT_EVAL_ENV, **cfg["env"]},
         "vehicles": {m.label: m.vehicle for m in cfg["methods"]},
@@ -309,8 +308,20 @@ def metadata(args, cfg: dict, argv: Sequence[str] | None, wall_time_s: float) ->
     }
 
 
+def sample_line(cfg: dict) -> str | None:
+    """The line that says which tanks a --quick tanks test flies, where it flies a sample of its set."""
+    sample = cfg.get("tank_sample")
+    if sample is None:
+        return None
+    names = cfg["tank_names"]
+    return (f"--quick: the tanks test flies {len(sample)} of the {len(names)} tanks of {cfg['tank']}, spread evenly "
+            f"over the set: {', '.join(names[i] for i in sample)}")
+
+
 def _benchmark(args, cfg: dict, argv: Sequence[str] | None) -> int:
     t0 = time.time()
+    if sample_line(cfg):
+        print(sample_line(cfg), flush=True)
     rows = robustness.run_benchmark(cfg["methods"], cfg, report=lambda line: print(line, flush=True))
     meta = metadata(args, cfg, argv, time.time() - t0)
     paths = report_files.write_outputs(cfg["out"], rows, meta, PERTURBATIONS)

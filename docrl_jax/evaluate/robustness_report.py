@@ -76,8 +76,9 @@ def per_tank(row: dict) -> bool:
     return row.get("tank", "") not in ("", ALL_TANKS)
 
 
-def tank_table(rows: Sequence[dict]) -> list[str]:
-    """Markdown lines: success % and trials per tank of the tanks test (A-W / W-A, median over seeds)."""
+def tank_table(rows: Sequence[dict], sample: Sequence[str] | None = None) -> list[str]:
+    """Markdown lines: success % and trials per tank of the tanks test (A-W / W-A, median over seeds);
+    `sample`: the tanks a --quick run flew of its set (meta's tank_sample)."""
     tank_rows = [r for r in rows if per_tank(r)]
     if not tank_rows:
         return []
@@ -87,7 +88,9 @@ def tank_table(rows: Sequence[dict]) -> list[str]:
     for r in tank_rows:
         rates.setdefault((r["tank"], r["method"], r["direction"]), {})[r["seed_index"]] = r
     out = ["", "## Per tank\n", f"Tanks test: success % ({' / '.join(SHORT[d] for d in dirs)}) and trials in each tank "
-           "(trial i flies in tank i mod the set's size); median over seeds.\n",
+           + (f"(--quick: {len(sample)} tanks spread evenly over the set; trial i flies in the i-th of them mod "
+              f"{len(sample)}); " if sample else "(trial i flies in tank i mod the set's size); ")
+           + "median over seeds.\n",
            "| Tank | Method | Success | Trials |", "|---|---|---|---|"]
     for tank in dict.fromkeys(r["tank"] for r in tank_rows):
         for m in methods:
@@ -166,7 +169,7 @@ def markdown(rows: Sequence[dict], meta: dict, envelope: dict) -> str:
                 cells = [_pct(by_scen.get((m, test, pert, mag, d, s))) if (m, test, pert, mag, d, s) in by_scen
                          else "" for s, d in cols]
                 out.append(f"| {_title(test, pert, envelope)} | {mag or '–'} | {m} | " + " | ".join(cells) + " |")
-    out += tank_table(all_rows)
+    out += tank_table(all_rows, meta.get("tank_sample"))
     return "\n".join(out) + "\n"
 
 

@@ -53,15 +53,21 @@ def summarize(trials: dict[str, np.ndarray]) -> dict[str, Any]:
     return s
 
 
-def markdown_table(rows: Sequence[dict[str, Any]], paper: bool = True, seed_rows: Sequence[dict] = ()) -> str:
+def heading(scenario: int, tank: str | None = None) -> str:
+    """A table's heading: its scenario, or the tank set its trials flew in (`--tank`; scenario 0)."""
+    return f"### Tanks: {tank}\n" if tank is not None else f"### Scenario {scenario}\n"
+
+
+def markdown_table(rows: Sequence[dict[str, Any]], paper: bool = True, seed_rows: Sequence[dict] = (),
+                   tank: str | None = None) -> str:
     """Markdown tables in the paper's format (Test | t_air (s) | t_water (s) | Success), one per
-    scenario, with our extra columns, and the paper's published rows beside ours (scenario 2).
-    `seed_rows` (from `aggregate_seeds`) adds a table of mean and spread over seeds."""
-    out = [markdown_seed_table(list(seed_rows))] if seed_rows else []
+    scenario (or, for `tank`, the tank set's), with our extra columns, and the paper's published rows
+    beside ours (scenario 2). `seed_rows` (from `aggregate_seeds`) adds a table of mean and spread over seeds."""
+    out = [markdown_seed_table(list(seed_rows), tank)] if seed_rows else []
     if seed_rows:
         out.append("## Per seed\n")
     for scen in sorted({r["scenario"] for r in rows}):
-        out.append(f"### Scenario {scen}\n")
+        out.append(heading(scen, tank))
         out.append("| Test | t_air (s) | t_water (s) | Success | Collisions | Out of bounds | Time-outs | "
                    "Path (m) |")
         out.append("|---|---|---|---|---|---|---|---|")
@@ -96,7 +102,8 @@ def write_outputs(out_dir: Path, rows: list[dict], trial_rows: list[dict], meta:
     """results.md (tables), results.csv (one row per scenario, direction and seed), trials.csv (one
     row per trial), results.json (all of it, plus the run's settings in "meta")."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "results.md").write_text(markdown_table(rows, seed_rows=seed_rows))
+    tank = meta.get("tank")
+    (out_dir / "results.md").write_text(markdown_table(rows, paper=tank is None, seed_rows=seed_rows, tank=tank))
     r4 = lambda d: {k: round(v, 4) if isinstance(v, float) and math.isfinite(v) else v for k, v in d.items()}
     rows, seed_rows = [r4(r) for r in rows], [r4(r) for r in seed_rows]
     with open(out_dir / "results.csv", "w", newline="") as f:
@@ -172,11 +179,11 @@ def aggregate_seeds(rows: list[dict]) -> list[dict]:
     return out
 
 
-def markdown_seed_table(aggs: list[dict]) -> str:
+def markdown_seed_table(aggs: list[dict], tank: str | None = None) -> str:
     out = ["## Over seeds\n", "Success: mean ± std over seeds (per seed in brackets); times and path: pooled over "
            "every seed's successful trials.\n"]
     for scen in sorted({a["scenario"] for a in aggs}):
-        out.append(f"### Scenario {scen}\n")
+        out.append(heading(scen, tank))
         out.append("| Test | t_air (s) | t_water (s) | Success | Seeds | Path (m) |")
         out.append("|---|---|---|---|---|---|")
         for a in aggs:

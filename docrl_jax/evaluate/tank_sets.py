@@ -44,6 +44,23 @@ def tank_index(num_trials: int, num_tanks: int) -> np.ndarray:
     return np.arange(num_trials) % num_tanks
 
 
+def spread(num_tanks: int, count: int) -> np.ndarray:
+    """`count` tanks of a set of `num_tanks` spread evenly over it, first and last included (all of them
+    when count >= num_tanks): the sample a short run flies rather than the set's first tanks."""
+    if count >= num_tanks:
+        return np.arange(num_tanks)
+    return np.unique(np.round(np.linspace(0, num_tanks - 1, count)).astype(int))
+
+
+def pick(names: list[str], stack, sample: np.ndarray | None):
+    """(names, stack) of the tanks at `sample` (None: the whole set)."""
+    if sample is None:
+        return names, stack
+    import jax
+    idx = np.asarray(sample)
+    return [names[i] for i in idx], jax.tree.map(lambda x: x[idx], stack)
+
+
 def repeat(stack, num_trials: int):
     """The set's stacked layouts repeated to one per trial (`tank_index`)."""
     import jax

@@ -1,11 +1,11 @@
 """`python -m docrl_jax.render`: the evaluator's trials drawn by MuJoCo's renderer, as an MP4 or a GIF.
 
     python -m docrl_jax.render        # the shipped generalist's first scenario-2 W-A trial -> flight.gif
-    python -m docrl_jax.render --run runs/d --scenario 2 --direction water_to_air --out wa.mp4
-    python -m docrl_jax.render --policy bba --scenario 3 --direction air_to_water --trials 3 --out bba.gif
-    python -m docrl_jax.render --run runs/d --direction water_to_air --trials 1 --of 100 --out first.gif
-    python -m docrl_jax.render --run runs/d --direction random --trials 4 --camera follow --out random.mp4
-    python -m docrl_jax.render --policy bba --tank gallery --direction air_to_water --trials 3 --out tanks.gif
+    python -m docrl_jax.render --run runs/d --scenarios 2 --directions water_to_air --out wa.mp4
+    python -m docrl_jax.render --policy bba --scenarios 3 --directions air_to_water --trials 3 --out bba.gif
+    python -m docrl_jax.render --run runs/d --directions water_to_air --trials 1 --of 100 --out first.gif
+    python -m docrl_jax.render --run runs/d --directions random --trials 4 --camera follow --out random.mp4
+    python -m docrl_jax.render --policy bba --tank gallery --directions air_to_water --trials 3 --out tanks.gif
 
 The trials are the evaluator's (docrl_jax.evaluate.rollout and protocol: the same env settings, seeds
 and rollout, which here also records the pose and the ranges of every step): `--trials K` draws the K
@@ -13,7 +13,9 @@ trials that `python -m docrl_jax.evaluate --trials K` runs for that scenario and
 `--of N` the first K of the N trials of `evaluate --trials N`. `random`: starts and goals drawn from
 the env's reset distribution, trial i from a key of (--seed, scenario, i). `--tank PATH|DIR|NAME`: the
 trials of `python -m docrl_jax.evaluate --tank` (trial i in tank i mod the set's size; any tank file,
-drawn in its own tank: docrl_jax.evaluate.tank_trials). Trials are drawn one after
+drawn in its own tank: docrl_jax.evaluate.tank_trials). A video flies one scenario and one direction:
+`--scenarios` and `--directions` (the evaluator's flags; `--scenario`, `--direction` the same) take
+one value. Trials are drawn one after
 another, each ending on its outcome for a second. The frames are `envs.rendering.Renderer`'s (cameras,
 water, goal, range fan, overlay). MP4 needs imageio and imageio-ffmpeg (`pip install -e '.[render]'`);
 a GIF is written by Pillow, which the package always has. Bad input is one line and exit status 2,
@@ -37,18 +39,17 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from docrl_jax import pretrained
+from docrl_jax import flags, pretrained
 from docrl_jax.arguments import UsageError, check_out
 from docrl_jax.errors import RenderError, RunDirError, os_error_line, short_reason
 from docrl_jax.evaluate.cli import check_guide
 from docrl_jax.evaluate.tank_sets import TankSetError
-from docrl_jax.evaluate.protocol import DIRECTIONS, NOMINAL_YAW, OUTCOMES, SCENARIOS
+from docrl_jax.evaluate.protocol import NOMINAL_YAW, OUTCOMES
 from docrl_jax.evaluate.policies import policy_for
 from docrl_jax.evaluate.tables import SHORT
 
 SUFFIXES = (".mp4", ".gif")
-RENDER_DIRECTIONS = (*DIRECTIONS, "random")
-_ALIASES = {"a-w": "air_to_water", "w-a": "water_to_air", "aw": "air_to_water", "wa": "water_to_air"}
+RANDOM = "random"   # --directions random: starts and goals of the env's reset distribution
 INSTALL = "pip install -e '.[render]'"
 HOLD_S = 1.0        # each trial's last frame (its outcome) stays this long
 RANDOM_SALT = 7     # random trials' keys: fold_in(fold_in(PRNGKey(seed), scenario), RANDOM_SALT + i)
@@ -81,7 +82,7 @@ def trials_to_render(env, policy, scenario: int, direction: str, num_trials: int
     import jax
     import docrl_jax.envs as envs
     from docrl_jax.evaluate import rollout
-    if direction != "random":
+    if direction != RANDOM:
         start, goal = envs.eval_pair(scenario, direction)
         trials = rollout.run_trials(env, policy, start, goal, rollout.trial_key(seed, scenario, direction),
                                     of or num_trials, max_steps, NOMINAL_YAW[direction], render=True)
@@ -174,35 +175,25 @@ def _write_mp4(imageio, path: Path, frames: np.ndarray, durations: Sequence[floa
 
 
 # ------------------------------------------------------------------ the command
-def parse_direction(text: str) -> str:
-    value = _ALIASES.get(text.strip().lower(), text.strip().lower())
-    if value not in RENDER_DIRECTIONS:
-        raise UsageError(f"--direction {text!r}: valid directions are air_to_water (A-W), water_to_air (W-A), random")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.envs.render_tracks import CAMERAS
     from docrl_jax.arguments import OneLineParser, prog
     from docrl_jax.evaluate.cli import add_guide_argument, add_which_argument
     p = OneLineParser(prog=prog("render"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory: its policy (--which)")
-    src.add_argument("--policy", metavar="NAME",
-                     help=f"a built-in policy: {', '.join(pretrained.POLICY_NAMES)} (default without --run: "
-                          f"{DEFAULT_POLICY}, shipped in the package)")
+    flags.add(src, "--run", ": its policy (--which)", metavar="RUN_DIR")
+    flags.add(src, "--policy", f": {', '.join(pretrained.POLICY_NAMES)} (default without --run: {DEFAULT_POLICY}, "
+                               "shipped in the package)", metavar="NAME")
     p.add_argument("--seed-index", type=int, default=0, help="which seed of --run (default 0)")
     add_which_argument(p)
     add_guide_argument(p)
     p.add_argument("--bba-depth-phase", default="after", help="BBA only: after (default), first, concurrent, in_air")
-    p.add_argument("--scenario", type=int, default=None, help="1, 2 or 3 (default 2, the training scenario)")
-    p.add_argument("--tank", metavar="PATH|DIR|NAME",
-                   help="instead of a scenario, the trials of evaluate --tank in a tank set: a tank file, a folder "
-                        "of them, a packaged tank's name or gallery (trial i in tank i mod the set's size)")
-    p.add_argument("--direction", default="water_to_air",
-                   help="air_to_water (A-W), water_to_air (W-A, default) or random (starts and goals of the env's "
-                        "reset distribution)")
-    p.add_argument("--trials", type=int, default=1, help="trials drawn one after another (default 1)")
+    flags.add(p, "--scenarios", "; a video flies one (default 2, the training scenario)", "--scenario", default=None)
+    flags.add(p, "--tank", ", in place of a scenario: the trials of evaluate --tank (trial i in tank i mod the set's "
+                           "size)", metavar="PATH|DIR|NAME")
+    flags.add(p, "--directions", f", or {RANDOM} (starts and goals of the env's reset distribution); a video flies "
+                                 "one (default water_to_air)", "--direction", default="water_to_air")
+    flags.add(p, "--trials", ", drawn one after another (default 1)", default=1)
     p.add_argument("--of", type=int, default=None, metavar="N",
                    help="draw the first --trials of the evaluator's N trials (evaluate --trials N); default: of "
                         "--trials (paper directions only)")
@@ -221,8 +212,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--every", type=int, default=None, metavar="K",
                    help=f"draw every K-th control step (default {GIF_EVERY} for a GIF, whose frames are stored whole "
                         "(~36 KB each at 640x240), 1 for an MP4)")
-    p.add_argument("--out", default=DEFAULT_OUT, metavar="FILE",
-                   help=f"the video: FILE.mp4 (H.264) or FILE.gif (default {DEFAULT_OUT})")
+    flags.add(p, "--out", f": the video, FILE.mp4 (H.264) or FILE.gif (default {DEFAULT_OUT})", default=DEFAULT_OUT,
+              metavar="FILE")
     return p
 
 
@@ -237,23 +228,18 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
     check_guide(args)
     if args.bba_depth_phase not in DEPTH_PHASES:
         raise UsageError(f"--bba-depth-phase {args.bba_depth_phase!r}: valid choices are {', '.join(DEPTH_PHASES)}")
-    if args.tank is not None and args.scenario is not None:
-        raise UsageError(f"--tank {args.tank} and --scenario {args.scenario}: a tank set's trials fly in scenario 0; "
-                         "give one of them")
-    scenario = 0 if args.tank is not None else 2 if args.scenario is None else args.scenario
-    if scenario not in (0, *SCENARIOS):
-        raise UsageError(f"--scenario {args.scenario}: valid scenarios are {', '.join(map(str, SCENARIOS))}")
-    direction = parse_direction(args.direction)
-    if args.tank is not None and direction == "random":
-        raise UsageError("--direction random: with --tank, give air_to_water (A-W) or water_to_air (W-A)")
+    flags.check_tank_or_scenarios(args.tank, args.scenarios)
+    scenario = 0 if args.tank is not None else flags.parse_scenarios(args.scenarios or "2", one="render")[0]
+    direction = flags.parse_directions(args.directions, extra=(RANDOM,), one="render")[0]
+    if args.tank is not None and direction == RANDOM:
+        raise UsageError(f"--directions {RANDOM}: with --tank, give air_to_water (A-W) or water_to_air (W-A)")
     if args.every is None:
         args.every = GIF_EVERY if Path(args.out).suffix.lower() == ".gif" else 1
     for flag, value in (("--trials", args.trials), ("--max-steps", args.max_steps), ("--every", args.every)):
-        if value <= 0:
-            raise UsageError(f"{flag} {value}: must be a positive integer")
+        flags.check_positive(flag, value)
     if args.of is not None:
-        if direction == "random" or args.tank is not None:
-            raise UsageError(f"--of: {'tank' if args.tank else 'random'} trials do not depend on their number; "
+        if direction == RANDOM or args.tank is not None:
+            raise UsageError(f"--of: {'tank' if args.tank else RANDOM} trials do not depend on their number; "
                              "leave --of out")
         if args.of < args.trials:
             raise UsageError(f"--of {args.of}: must be at least --trials {args.trials}")
@@ -286,7 +272,22 @@ def validate_args(args: argparse.Namespace) -> dict[str, Any]:
         from docrl_jax.evaluate.tank_sets import check
         cfg["tank_names"] = check(args.tank, rollout.eval_params(0, args.max_steps, **env))
     check_out(out, folder=False)   # its missing folders are made when it is written
+    check_memory(args, rollout.eval_params(scenario, args.max_steps, **env).observation_size)
     return cfg
+
+
+def check_memory(args: argparse.Namespace, ranges: int) -> None:
+    """--trials (and --of) against this machine's memory (trial_memory): each trial's records and, at
+    most, a frame every --every steps, kept whole and once more joined (a GIF's palette images besides;
+    --guide sensors draws the own map beside each)."""
+    from docrl_jax.evaluate import trial_memory
+    frames = -(-(args.max_steps + 1) // args.every)
+    frame = args.width * args.height * (3 * 2 + 1) * (2 if args.guide == "sensors" else 1)
+    start = args.tank is not None or args.guide is not None
+    trial_memory.check("--trials", args.trials, trial_memory.Need(args.max_steps, from_states=start,
+                                                                  render_ranges=ranges, frame_bytes=frames * frame))
+    if args.of is not None:
+        trial_memory.check("--of", args.of, trial_memory.Need(args.max_steps, from_states=start, render_ranges=ranges))
 
 
 def import_mujoco() -> None:

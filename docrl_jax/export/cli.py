@@ -16,7 +16,7 @@ import argparse
 import sys
 from typing import Sequence
 
-from docrl_jax import pretrained
+from docrl_jax import flags, pretrained
 from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
 from docrl_jax.errors import ExportError, RunDirError, os_error_line
 from docrl_jax.export.artefacts import DEFAULT_OPSET, FORMATS
@@ -25,12 +25,12 @@ def build_parser() -> argparse.ArgumentParser:
     from docrl_jax.evaluate.cli import add_which_argument
     p = OneLineParser(prog=prog("export"), description=__doc__.split("\n\n")[0])
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--run", metavar="RUN_DIR", help="a trainer run directory (config.yaml + checkpoints)")
-    src.add_argument("--policy", metavar="NAME",
-                     help=f"a trained policy shipped in the package: {', '.join(pretrained.PRETRAINED)}")
+    flags.add(src, "--run", "", metavar="RUN_DIR")
+    flags.add(src, "--policy", f": a trained one shipped in the package, {', '.join(pretrained.PRETRAINED)}",
+              metavar="NAME")
     p.add_argument("--seed-index", type=int, default=0, help="which seed of the run (default 0)")
     add_which_argument(p)
-    p.add_argument("--out", metavar="DIR", required=True, help="output directory (created)")
+    flags.add(p, "--out", ": a folder (created)", metavar="DIR", required=True)
     p.add_argument("--force", action="store_true", help="replace an export already in --out")
     p.add_argument("--formats", default=",".join(FORMATS),
                    help=f"comma-separated, of {', '.join(FORMATS)} (default all three)")
@@ -43,11 +43,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _shipped(name: str) -> str:
     """A --policy name the export takes: a shipped policy (bba is a controller, not a network)."""
+    from docrl_jax.schema import did_you_mean
     name = name.lower()
     if name not in pretrained.PRETRAINED:
         raise pretrained.UnknownPolicy(f"--policy {name!r}: valid choices: {', '.join(pretrained.PRETRAINED)} (the "
                                        "trained policies shipped in the package; bba is a controller, not a network "
-                                       "to export), or --run RUN_DIR")
+                                       f"to export), or --run RUN_DIR{did_you_mean(name, pretrained.PRETRAINED)}")
     return name
 
 

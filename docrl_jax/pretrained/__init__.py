@@ -42,8 +42,9 @@ def check_name(name: str, flag: str = "--policy") -> str:
     """`name` as given when it is a shipped policy or a baseline; UnknownPolicy (one line naming the
     valid choices) otherwise."""
     if name not in POLICY_NAMES:
+        from docrl_jax.schema import did_you_mean
         raise UnknownPolicy(f"{flag} {name!r}: unknown policy; valid choices: {', '.join(POLICY_NAMES)} "
-                            "(or --run RUN_DIR for a trained agent)")
+                            f"(or --run RUN_DIR for a trained agent){did_you_mean(name, POLICY_NAMES)}")
     return name
 
 

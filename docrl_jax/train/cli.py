@@ -26,6 +26,7 @@ import os
 import time
 from pathlib import Path
 
+from docrl_jax import flags
 from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.config import Config, env_kwargs, load_config, packaged_config_names, parse_overrides
 from docrl_jax.errors import ConfigError, RunDirError
@@ -39,10 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", help=f"packaged config name ({', '.join(packaged_config_names())}) or a YAML path")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one config value (YAML scalar); repeatable")
-    p.add_argument("--tank", metavar="PATH|DIR|NAME",
-                   help="train in a tank set: sets env.scenario 0 and env.tank to a tank file, a folder of them, a "
-                        "packaged tank's name, or gallery (every packaged tank; docs/TANKS.md); every tank is "
-                        "checked before anything compiles")
+    flags.add(p, "--tank", " to train in: sets env.scenario 0 and env.tank; every tank is checked before anything "
+                           "compiles", metavar="PATH|DIR|NAME")
     p.add_argument("--run-dir", help="output directory (default runs/<name>-<UTC time>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its newest intact "
                                                          "checkpoint; --set may change only its length, devices and "

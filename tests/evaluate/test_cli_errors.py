@@ -43,7 +43,7 @@ def test_evaluate_errors_are_one_line(argv, message, capsys, no_compile):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--scenario", "9"], "--scenario 9: valid scenarios are 1, 2, 3"),   # likewise
+    (["--scenario", "9"], "--scenarios '9': valid scenarios are 1, 2, 3"),   # likewise: render's --scenarios
     (["--policy", "nope"], f"--policy 'nope': unknown policy; {VALID}"),
     (["--policy", "td3_lstm", "--width", "abc"], "argument --width: invalid int value: 'abc'"),
     (["--out", "x.avi"], "valid suffixes are .mp4, .gif"),

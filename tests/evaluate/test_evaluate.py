@@ -346,9 +346,15 @@ def test_cli_run_over_seeds(fake_trainer, tmp_path, capsys):
     assert len(js["trials"]) == 2 * N and js["meta"]["seed_indices"] == [0, 1]
     assert js["meta"]["which"] == {"0": "final", "1": "final"}   # asked for explicitly: no " (best)" in the label
     assert js["meta"]["policy_sources"] == {"0": "final policy of seed index 0", "1": "final policy of seed index 1"}
-    assert "oracle_run: final policy of seed index 1" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "oracle_run: final policy of seed index 1" in printed
     assert (out / "trajectory_s1_air_to_water_seed0.png").exists()
     assert (out / "trajectories_s1_air_to_water_seed1.npz").exists()
+    # the closing line names every file written, the trajectories and figures too
+    closing = printed.strip().splitlines()[-1]
+    assert closing.startswith(f"wrote {out}/: results.md, results.csv, results.json, trials.csv, "), closing
+    listed = closing.split(": ", 1)[1].rsplit(" (", 1)[0].split(", ")
+    assert sorted(listed) == sorted(p.name for p in out.iterdir()), closing
 
 
 def test_cli_run_writes_into_the_run_by_default(fake_trainer, tmp_path, monkeypatch):

@@ -123,8 +123,14 @@ def test_settings_and_host():
 @pytest.mark.parametrize("argv, message", [
     ([], "nothing to benchmark: give --run RUN_DIR"),
     (["--policy", "ppo"], "valid choices: bba"),
-    (["--policy", "bba", "--perturbations", "gusts"], "valid names are wind_gusts, water_current"),
-    (["--policy", "bba", "--tests", "sweeps,maze"], "valid tests are perturbations, random_trips, held_out_layouts"),
+    (["--policy", "bba", "--perturbations", "gusts"], "unknown perturbation 'gusts'; valid perturbations: wind_gusts, "
+                                                     "water_current"),
+    (["--policy", "bba", "--tests", "sweeps,maze"], "unknown test 'sweeps'; valid tests: perturbations, random_trips, "
+                                                   "held_out_layouts"),
+    # names are exact: a test's name in the singular is no alias of it
+    (["--policy", "bba", "--tests", "tank"], "unknown test 'tank'; valid tests: perturbations, random_trips, "
+                                            "held_out_layouts, structured, tanks (comma-separated); did you mean "
+                                            "'tanks'?"),
     (["--policy", "bba", "--scenarios", "0"], "valid scenarios are 1, 2, 3"),
     (["--policy", "bba", "--directions", "up"], "air_to_water (A-W), water_to_air (W-A)"),
     (["--policy", "bba", "--layouts", "0"], "--layouts 0: must be in 1..10000"),
@@ -249,3 +255,26 @@ def test_a_shipped_policy_is_a_method_in_its_own_vehicle(tmp_path, monkeypatch):
     bad = robustness_cli.build_parser().parse_args(["--policy", "td3_lstn", "--out", str(tmp_path / "o")])
     with pytest.raises(robustness_cli.UsageError, match=r"^--policy 'td3_lstn': unknown policy; valid choices: bba, "):
         robustness_cli.validate_args(bad)
+
+
+def test_quick_tanks_test_samples_the_whole_set_and_says_so(tmp_path, monkeypatch):
+    """--quick's 10 trips in a set of 35 tanks fly 10 tanks spread evenly over it, not its first 10."""
+    from docrl_jax.evaluate import tank_sets
+    names = [f"tank_{i:02d}" for i in range(35)]
+    monkeypatch.setattr(tank_sets, "check", lambda spec, params, flag="--tank": list(names))   # no tank loaded
+    args = robustness_cli.build_parser().parse_args(["--policy", "bba", "--quick", "--tests", "tanks",
+                                                     "--out", str(tmp_path / "r")])
+    cfg = robustness_cli.validate_args(args)
+    assert cfg["tank_sample"] == [0, 4, 8, 11, 15, 19, 23, 26, 30, 34]
+    assert robustness_cli.sample_line(cfg) == (
+        "--quick: the tanks test flies 10 of the 35 tanks of gallery, spread evenly over the set: tank_00, tank_04, "
+        "tank_08, tank_11, tank_15, tank_19, tank_23, tank_26, tank_30, tank_34")
+    picked, stack = tank_sets.pick(names, {"index": np.arange(35)}, cfg["tank_sample"])
+    assert picked == [names[i] for i in cfg["tank_sample"]] and stack["index"].tolist() == cfg["tank_sample"]
+    # as many trips as tanks, or more: the whole set, as without --quick
+    for argv in (["--quick", "--trials", "35"], ["--trials", "10"]):
+        args = robustness_cli.build_parser().parse_args(["--policy", "bba", "--tests", "tanks", *argv,
+                                                         "--out", str(tmp_path / "r")])
+        cfg = robustness_cli.validate_args(args)
+        assert "tank_sample" not in cfg and robustness_cli.sample_line(cfg) is None
+    assert tank_sets.spread(3, 2).tolist() == [0, 2] and tank_sets.spread(4, 9).tolist() == [0, 1, 2, 3]

@@ -115,6 +115,12 @@ def test_evaluate_tank_prints_and_writes_a_table_per_tank(evaluated):
     assert meta["tank"] == str(evaluated[0].parent / "set") and meta["tank_names"] == ["wall", "open"]
     assert sorted(p.name for p in out.glob("trajectory_*.png")) == [
         f"trajectory_s0_{d}_{t}.png" for d in ("air_to_water", "water_to_air") for t in ("open", "wall")]
+    # the tables are the tank set's, not a "scenario 0" the command refuses; the closing line names every file
+    for text in (printed, (out / "results.md").read_text()):
+        assert f"### Tanks: {evaluated[0].parent / 'set'}" in text and "Scenario 0" not in text
+    closing = printed.strip().splitlines()[-1]
+    listed = closing.split(": ", 1)[1].rsplit(" (", 1)[0].split(", ")
+    assert closing.startswith(f"wrote {out}/: ") and sorted(listed) == sorted(p.name for p in out.iterdir()), closing
 
 
 def test_starts_and_goals_lie_in_each_tanks_regions(evaluated):
@@ -195,12 +201,12 @@ def test_a_bad_tank_is_one_line_exit_2(command, tank, message, tank_dir, tmp_pat
 
 
 @pytest.mark.parametrize("main, argv, message", [
-    (cli.main, ["--scenarios", "1"], "a tank set's trials replace the scenarios'"),
+    (cli.main, ["--scenarios", "1"], "a tank set's trials fly in scenario 0, in place of the scenarios' paper pairs"),
     (cli.main, ["--env", "start_water_fraction=1"], "--env start_water_fraction: set by --tank"),
     (cli.main, ["--env", "tank=x"], "--env tank: set by the evaluator (use --tank)"),
     (video.main, ["--scenario", "2", "--out", "v.gif"], "a tank set's trials fly in scenario 0"),
     (video.main, ["--direction", "random", "--out", "v.gif"], "with --tank, give air_to_water"),
-    (robustness_cli.main, ["--tests", "random", "--out", "r"], "only the tanks test flies a tank set"),
+    (robustness_cli.main, ["--tests", "random_trips", "--out", "r"], "only the tanks test flies a tank set"),
 ])
 def test_tank_usage_errors(main, argv, message, tmp_path, monkeypatch, capsys, no_compile):
     monkeypatch.chdir(tmp_path)

@@ -116,7 +116,7 @@ def test_written_video_decodes(drawn, tmp_path, suffix):
 
 def test_command_renders_a_trained_policy(tmp_path, capsys):
     out = tmp_path / "wa.gif"
-    argv = ["--run", TRAINED, "--scenario", "2", "--direction", "W-A", "--trials", "2", "--of", "3",
+    argv = ["--run", TRAINED, "--scenarios", "2", "--directions", "W-A", "--trials", "2", "--of", "3",
             "--max-steps", "12", "--width", "96", "--height", "48", "--every", "3", "--out", str(out)]
     assert video.main(argv) == 0
     text = capsys.readouterr().out
@@ -129,7 +129,7 @@ def test_command_renders_a_trained_policy(tmp_path, capsys):
 @pytest.mark.parametrize("argv, message", [
     (["--run", "no/such/run", "--out", "x.gif"], "does not exist"),
     (["--policy", "ppo", "--out", "x.gif"], "valid choices: bba"),
-    (["--policy", "bba", "--scenario", "4", "--out", "x.gif"], "valid scenarios are 1, 2, 3"),
+    (["--policy", "bba", "--scenario", "4", "--out", "x.gif"], "--scenarios '4': valid scenarios are 1, 2, 3"),
     (["--policy", "bba", "--direction", "up", "--out", "x.gif"], "air_to_water (A-W), water_to_air (W-A), random"),
     (["--policy", "bba", "--out", "x.avi"], "valid suffixes are .mp4, .gif"),
     (["--policy", "bba", "--trials", "3", "--of", "2", "--out", "x.gif"], "--of 2: must be at least --trials 3"),
