@@ -53,7 +53,7 @@ def _pack(tree: Any) -> dict[str, Any]:
 @dataclass(frozen=True)
 class OlderLayout:
     """How a checkpoint written by an earlier version reads into today's state. `added`: fields (attribute
-    names anywhere in the tree) that did not exist then, whose leaves take `fill` (ShapeDtypeStruct ->
+    names or dict keys anywhere in the tree) that did not exist then, whose leaves take `fill` (ShapeDtypeStruct ->
     array), as those versions behaved. `reshaped`: fields stored then in another shape, as (name,
     today's shape -> the stored one) pairs; their stored leaves are read in that shape and dropped, and
     they take zeros, so only values that the env step computes before it reads them belong here."""
@@ -67,7 +67,7 @@ class OlderLayout:
         leaf sit one place earlier there."""
         out, i = [], 0
         for path, _ in jax.tree_util.tree_flatten_with_path(abstract_tree)[0]:
-            if any(getattr(k, "name", None) in self.added for k in path):
+            if any(_field(k) in self.added for k in path):
                 out.append(None)
             else:
                 out.append(i)
@@ -77,8 +77,13 @@ class OlderLayout:
     def stored_shapes(self, abstract_tree: Any) -> list[Callable[[tuple], tuple] | None]:
         """Each leaf's `reshaped` rule (today's shape -> the stored one), None for a leaf stored as it is."""
         rules = dict(self.reshaped)
-        return [next((rules[k.name] for k in path if getattr(k, "name", None) in rules), None)
+        return [next((rules[_field(k)] for k in path if _field(k) in rules), None)
                 for path, _ in jax.tree_util.tree_flatten_with_path(abstract_tree)[0]]
+
+
+def _field(key) -> Any:
+    """A tree path entry's field name: a dataclass attribute's or a dict key's (the env's info)."""
+    return getattr(key, "name", getattr(key, "key", None))
 
 
 def _stored_index(abstract_tree: Any, older: OlderLayout | None) -> list[int | None]:

@@ -107,16 +107,22 @@ def _older_layouts(config: Config) -> tuple[checkpoint.OlderLayout, ...]:
     """The layouts of the run states earlier versions checkpointed, newest first. Before the scenes
     factored the mass matrix sparse (assets/common.xml), MJX kept it and its factor as dense nv x nv
     matrices and no inverse diagonal; every env step computes all three before it reads them. Before
-    that, SimState.training_margins did not exist either: on in every env exactly when the config has a
+    the own map, the env's info held no attitude ("rot"). Before the sparse mass matrix,
+    SimState.training_margins did not exist either: on in every env exactly when the config has a
     training-only margin (those versions turned the evaluation lanes off then, so no lane needs it off)."""
     p = make_params(config.env.scenario, **env_kwargs(config))
     on = p.collision_margin > 0.0 or p.hull_margin > 0.0
     nv = mujoco.MjModel.from_xml_path(scene_path(p.scenario)).nv
     dense = (("M", lambda shape: (*shape[:-1], nv, nv)), ("qLD", lambda shape: (*shape[:-1], nv, nv)),
              ("qLDiagInv", lambda shape: (*shape[:-1], 0)))
-    return (checkpoint.OlderLayout("the sparse mass matrix", reshaped=dense),
-            checkpoint.OlderLayout("the sparse mass matrix and SimState.training_margins", ("training_margins",),
-                                   lambda leaf: np.full(leaf.shape, on, bool), reshaped=dense))
+    def fill(leaf):   # the margins as those versions set them; the info's attitude ("rot") is written by the
+        #               next env step before anything reads it
+        return np.full(leaf.shape, on, bool) if leaf.dtype == bool else np.zeros(leaf.shape, leaf.dtype)
+
+    return (checkpoint.OlderLayout("the body's attitude in the env's info", ("rot",), fill),
+            checkpoint.OlderLayout("the sparse mass matrix", ("rot",), fill, reshaped=dense),
+            checkpoint.OlderLayout("the sparse mass matrix and SimState.training_margins", ("training_margins", "rot"),
+                                   fill, reshaped=dense))
 
 
 def _resume(mngr, state_shape, placement, config: Config, plan, metrics_path: Path, console: Console, primary: bool):
