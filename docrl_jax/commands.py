@@ -34,7 +34,7 @@ COMMANDS = {
                                                               "random trips, held-out tanks"),
     "sweep": Command("docrl_jax.train.sweep_cli", "a hyperparameter grid x seeds, with as few programs as it allows"),
     "compare": Command("docrl_jax.evaluate.compare", "several evaluations beside the paper's Table I"),
-    "tanks": Command("docrl_jax.envs.tanks_cli", "the packaged tanks; check tank files"),
+    "tanks": Command("docrl_jax.envs.tanks_cli", "the packaged tanks; check and draw tank files"),
 }
 
 

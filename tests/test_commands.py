@@ -54,8 +54,8 @@ def test_a_mistyped_choice_names_the_nearest(capsys):
     with pytest.raises(SystemExit) as e:
         commands.main(["tanks", "chek"])
     assert e.value.code == 2 and capsys.readouterr().err.splitlines() == [
-        "python -m docrl_jax.tanks: error: argument ACTION: invalid choice: 'chek' (choose from 'list', 'check'); "
-        "did you mean 'check'?"]
+        "python -m docrl_jax.tanks: error: argument ACTION: invalid choice: 'chek' "
+        "(choose from 'list', 'check', 'draw'); did you mean 'check'?"]
 
 
 def test_tanks_check_prints_one_line_per_file(tmp_path, capsys):

@@ -1,20 +1,28 @@
-"""`docrl tanks` (`python -m docrl_jax.tanks`): the packaged tanks, and tank files checked before they are
-flown (docs/TANKS.md).
+"""`docrl tanks` (`python -m docrl_jax.tanks`): the packaged tanks, tank files checked before they are
+flown, and tanks drawn (docs/TANKS.md).
 
     docrl tanks list                          # the gallery: each packaged tank's name and description
     docrl tanks check my_tank.yaml more/*.yaml
+    docrl tanks draw my_tank.yaml --out out/my_tank.png
+    docrl tanks draw my_tank.yaml wall_opening_mid --out out/pictures    # a folder: <tank>.png each
 
 `check` loads each file as a run or an evaluation would (`tanks.load`: every rule of docs/TANKS.md,
 the routes both ways included) and prints one line per file: what it holds, or its one-line error.
+`draw` loads each tank the same way (a file, a folder, a packaged tank's name or gallery) and writes its
+top view as a PNG (docrl_jax.envs.tank_picture: the solids shaded by the height of their top, the regions,
+the A-W route), printing `wrote PATH`; a tank that is not valid gets its one-line error and no picture.
 Exit status 0 when every file is a valid tank, 2 otherwise.
 """
 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Sequence
 
-from docrl_jax.arguments import OneLineParser, prog
+from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
+
+DRAW_PX = 720   # the top view's side in pixels: its fonts and lines drawn at 200 dpi
 
 
 def build_parser() -> OneLineParser:
@@ -23,6 +31,12 @@ def build_parser() -> OneLineParser:
     sub.add_parser("list", help="the packaged tanks (the gallery): name and description")
     check = sub.add_parser("check", help="load and check tank files, one line each")
     check.add_argument("files", nargs="+", metavar="FILE", help="tank files (YAML or JSON)")
+    draw = sub.add_parser("draw", help="draw tanks from above as PNG pictures")
+    draw.add_argument("files", nargs="+", metavar="FILE",
+                      help="tank files (YAML or JSON), folders of them, packaged tanks' names or gallery")
+    # The shared --out (docrl_jax.flags, on a floor above the env's: tests/test_imports.py), its help as there.
+    draw.add_argument("--out", required=True, metavar="PATH",
+                      help="where the command writes: a .png file for one tank, else a folder (one <tank>.png each)")
     return p
 
 
@@ -58,11 +72,60 @@ def check_files(files: Sequence[str]) -> int:
     return 2 if bad else 0
 
 
+def draw_out(out: str) -> tuple[Path, bool]:
+    """(--out checked, whether it is a folder): an existing folder or a path without a suffix is a folder
+    (one <tank>.png each), a .png path the picture of one tank; UsageError otherwise."""
+    path = Path(out)
+    folder = path.is_dir() or not path.suffix
+    if not folder and path.suffix.lower() != ".png":
+        raise UsageError(f"--out {out}: a picture is a .png file, or give a folder (one <tank>.png each)")
+    return check_out(path, folder=folder), folder
+
+
+def draw_files(specs: Sequence[str], out: Path, folder: bool) -> int:
+    """Each tank of `specs` drawn into `out` (`draw_out`); one line per tank: `wrote PATH` or its error.
+    UsageError, before any tank is loaded, when several tanks would go into one .png file."""
+    from matplotlib import image
+
+    from docrl_jax.envs import make_params, tank_picture, tanks
+    found, errors = [], []
+    for spec in specs:
+        try:
+            found += tanks.files(spec)
+        except tanks.TankError as e:
+            errors.append(e)
+    if not folder and len(found) > 1:
+        raise UsageError(f"--out {out}: {len(found)} tanks are drawn into a folder, not into one .png file")
+    for e in errors:
+        print(f"invalid: {e}", flush=True)
+    params = make_params(0)
+    bad = len(errors)
+    for name in found:
+        try:
+            layout = tanks.load(name, params)
+        except tanks.TankError as e:
+            bad += 1
+            print(f"invalid: {e}", flush=True)
+            continue
+        path, route = tank_picture.route_of(layout, params)
+        target = out / f"{name.stem}.png" if folder else out
+        target.parent.mkdir(parents=True, exist_ok=True)
+        image.imsave(target, tank_picture.top_view(name.stem, layout, path, route, size_px=DRAW_PX))
+        print(f"wrote {target}", flush=True)
+    return 2 if bad else 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if args.action == "list":
         return list_gallery()
-    return check_files(args.files)
+    if args.action == "check":
+        return check_files(args.files)
+    try:
+        return draw_files(args.files, *draw_out(args.out))
+    except UsageError as e:
+        parser.error(str(e))
 
 
 if __name__ == "__main__":
