@@ -85,6 +85,9 @@ def parse_names(flag: str, text: str, valid, noun: str, hint: str = "") -> list[
     return list(dict.fromkeys(names))
 
 
+OUT_HELP = "where the command writes"   # what every command's --out help starts with (docrl_jax.flags)
+
+
 def check_out(path: str | Path, flag: str = "--out", folder: bool = True, parents: bool = True) -> Path:
     """An output the command will write, checked before it does any work: a folder (`folder`) or a file,
     whose missing folders the command makes with their missing parents (`parents`), else only the

@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 from typing import Callable, NamedTuple, Sequence
 
-from docrl_jax.arguments import UsageError
+from docrl_jax.arguments import OUT_HELP, UsageError
 from docrl_jax.evaluate.protocol import DIRECTIONS, SCENARIOS
 
 
@@ -44,7 +44,7 @@ FLAGS = {
     "--trials": Flag("trials", int, "how many trials"),
     "--tank": Flag("tank", None, "a tank set: a tank file, a folder of them, a packaged tank's name, or gallery "
                                  "(every packaged tank; docs/TANKS.md)"),
-    "--out": Flag("out", None, "where the command writes"),
+    "--out": Flag("out", None, OUT_HELP),
 }
 
 

@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from docrl_jax.arguments import OneLineParser, UsageError, check_out, prog
+from docrl_jax.arguments import OUT_HELP, OneLineParser, UsageError, check_out, prog
 
 DRAW_PX = 720   # the top view's side in pixels: its fonts and lines drawn at 200 dpi
 
@@ -34,9 +34,10 @@ def build_parser() -> OneLineParser:
     draw = sub.add_parser("draw", help="draw tanks from above as PNG pictures")
     draw.add_argument("files", nargs="+", metavar="FILE",
                       help="tank files (YAML or JSON), folders of them, packaged tanks' names or gallery")
-    # The shared --out (docrl_jax.flags, on a floor above the env's: tests/test_imports.py), its help as there.
+    # The shared --out; docrl_jax.flags sits on a floor above the env's (tests/test_imports.py), so its help
+    # stem comes from where both read it.
     draw.add_argument("--out", required=True, metavar="PATH",
-                      help="where the command writes: a .png file for one tank, else a folder (one <tank>.png each)")
+                      help=f"{OUT_HELP}: a .png file for one tank, else a folder (one <tank>.png each)")
     return p
 
 
