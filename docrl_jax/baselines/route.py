@@ -69,6 +69,14 @@ def route_follower(params=None) -> Policy:
                   trial_params=None if params is not None else _plans, trial_axes=0)
 
 
+def _guided_act(policy: Policy, params, plan: dict, carry, obs, info, key):
+    """`policy`'s (carry, action) with its goal floats pointing at the aim of `plan` (lines of sight keeping
+    GUIDED_SIGHT_GAP, a steep climb's aim brought GUIDED_STEEP_REACH near)."""
+    position = info["position"]
+    target = aim(plan, position, info["goal"], guidance.GUIDED_SIGHT_GAP, guidance.GUIDED_STEEP_REACH)
+    return policy.act(params, carry, guidance.guide(obs, position, info["yaw"], target), info, key)
+
+
 PLAN_AXES = {"plan": 0, "policy": None}   # vmap in_axes of a guided policy's params over trials
 
 
@@ -87,9 +95,7 @@ def guided(policy: Policy) -> Policy:
     one act function (`policies.policy_for` shares them per architecture) get one guided act: one compile."""
     if id(policy.act) not in _GUIDED:
         def act(params, carry, obs, info, key):
-            position, goal = info["position"], info["goal"]
-            target = aim(params["plan"], position, goal, guidance.GUIDED_SIGHT_GAP, guidance.GUIDED_STEEP_REACH)
-            return policy.act(params["policy"], carry, guidance.guide(obs, position, info["yaw"], target), info, key)
+            return _guided_act(policy, params["policy"], params["plan"], carry, obs, info, key)
         _GUIDED[id(policy.act)] = (act, policy)    # keeping the policy keeps its act's id unique
     return Policy(name=f"{policy.name} (route-guided)", params={"plan": None, "policy": policy.params},
                   init_carry=policy.init_carry, act=_GUIDED[id(policy.act)][0], source=policy.source,
@@ -119,10 +125,7 @@ def mapped(policy: Policy, p) -> Policy:
     if cache_key not in _OWN_MAP:
         def act(params, carry, obs, info, key):
             carry, plan = belief.sense_and_plan(p, carry, info)
-            position = info["position"]
-            target = aim(plan, position, info["goal"], guidance.GUIDED_SIGHT_GAP, guidance.GUIDED_STEEP_REACH)
-            inner, action = policy.act(params, carry["inner"], guidance.guide(obs, position, info["yaw"], target),
-                                       info, key)
+            inner, action = _guided_act(policy, params, plan, carry["inner"], obs, info, key)
             return {**carry, "inner": inner}, action
         _OWN_MAP[cache_key] = (act, lambda: belief.own_map(policy.init_carry()), policy)
     act, init, _ = _OWN_MAP[cache_key]
