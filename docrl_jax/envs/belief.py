@@ -74,19 +74,8 @@ def update(belief: jax.Array, p: EnvParams, position, rot, underwater, ranges) -
 
 def gaps(belief: jax.Array) -> jax.Array:
     """float32 (X, Y, Z): distance (m) from every cell centre to the nearest OCCUPIED cell centre, exact up to
-    GAP_REACH cells and at least that beyond (a separable squared-distance transform over a window)."""
-    far = jnp.float32((2 * GAP_REACH * flyability.GRID_STEP) ** 2)
-    sq = jnp.where(belief == OCCUPIED, jnp.float32(0.0), far)
-    for axis in range(3):
-        padded = jnp.pad(sq, [(GAP_REACH, GAP_REACH) if a == axis else (0, 0) for a in range(3)],
-                         constant_values=far)
-        n = sq.shape[axis]
-        best = sq
-        for s in range(-GAP_REACH, GAP_REACH + 1):
-            shifted = jax.lax.slice_in_dim(padded, GAP_REACH + s, GAP_REACH + s + n, axis=axis)
-            best = jnp.minimum(best, shifted + jnp.float32((s * flyability.GRID_STEP) ** 2))
-        sq = best
-    return jnp.sqrt(sq)
+    GAP_REACH cells and inf where no occupied cell lies within GAP_REACH cells along every axis."""
+    return jnp.sqrt(flyability.window_sq_distance(belief == OCCUPIED, GAP_REACH))
 
 
 def passable(belief: jax.Array, gap: jax.Array, p: EnvParams) -> jax.Array:

@@ -210,11 +210,11 @@ def distance_field(free: jax.Array, seeds: jax.Array, cost=None) -> jax.Array:
     return d
 
 
-def _near(seeds: jax.Array, radius: float) -> jax.Array:
-    """bool (X, Y, Z): cells whose centre lies within `radius` of a seed cell's centre. The squared distance
-    separates by axis and a seed farther than `radius` along one axis is too far, so each axis takes the
-    shifts up to `radius` only (5 at the default arrival distance; `_straight_line` takes whole axes)."""
-    reach = int(np.floor(radius / GRID_STEP + 1e-6))
+def window_sq_distance(seeds: jax.Array, reach: int) -> jax.Array:
+    """float32 (X, Y, Z): squared distance from every cell centre to the nearest seed cell centre, exact where
+    that seed lies within `reach` cells along every axis (so for every distance up to `reach` cells), inf where
+    none does. The squared distance separates by axis, so each axis takes the shifts up to `reach` only
+    (`_straight_line` takes whole axes)."""
     sq = jnp.where(seeds, jnp.float32(0.0), jnp.float32(jnp.inf))
     for axis in range(3):
         pad = [(0, 0)] * 3
@@ -222,7 +222,14 @@ def _near(seeds: jax.Array, radius: float) -> jax.Array:
         padded, n = jnp.pad(sq, pad, constant_values=jnp.inf), sq.shape[axis]
         sq = functools.reduce(jnp.minimum, [jax.lax.slice_in_dim(padded, reach + o, reach + o + n, axis=axis)
                                             + jnp.float32((o * GRID_STEP) ** 2) for o in range(-reach, reach + 1)])
-    return sq <= jnp.float32(radius) ** 2
+    return sq
+
+
+def _near(seeds: jax.Array, radius: float) -> jax.Array:
+    """bool (X, Y, Z): cells whose centre lies within `radius` of a seed cell's centre (5 cells' window at the
+    default arrival distance)."""
+    reach = int(np.floor(radius / GRID_STEP + 1e-6))
+    return window_sq_distance(seeds, reach) <= jnp.float32(radius) ** 2
 
 
 def _straight_line(seeds: jax.Array) -> jax.Array:
