@@ -103,14 +103,13 @@ def relax(field: jax.Array, free: jax.Array, seeds: jax.Array, cost: jax.Array, 
     return jax.lax.scan(sweep, field, None, length=SWEEPS if sweeps is None else sweeps)[0]
 
 
-def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, route_cost=guidance.route_cost,
-         sweeps: int | None = None) -> dict:
-    """`guidance.aim`'s params from the belief (module doc), the field relaxed `sweeps` times from `field`.
-    `route_cost(gap, p)` is the cost per metre of a known cell (guidance's dislike of cells near solids)."""
+def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, sweeps: int | None = None) -> dict:
+    """`guidance.aim`'s params from the belief (module doc), the field relaxed `sweeps` times from `field`; a
+    known cell costs `guidance.route_cost` per metre (its dislike of cells near solids)."""
     gap = gaps(belief)
     free = passable(belief, gap, p)
     seeds = flyability.goal_seeds(free, goal, p.arrival_distance)
-    cost = route_cost(gap, p) + UNKNOWN_COST * (belief == UNKNOWN)
+    cost = guidance.route_cost(gap, p) + UNKNOWN_COST * (belief == UNKNOWN)
     return {"field": relax(field, free, seeds, cost, sweeps), "gap": gap,
             "arrival": jnp.float32(p.arrival_distance)}
 
@@ -130,7 +129,7 @@ def sense_and_plan(p: EnvParams, carry: dict, info: dict) -> tuple[dict, dict]:
     ranges = jnp.concatenate([info["ranges"], info["vertical_ranges"]])
     seen = update(carry["belief"], p, info["position"], info["rot"], info["underwater"], ranges)
     field = jnp.where(jnp.all(goal == carry["goal"]), carry["field"], initial_field(goal))
-    params = plan(seen, field, goal, p, guidance.route_cost)
+    params = plan(seen, field, goal, p)
     return {**carry, "belief": seen, "field": params["field"], "goal": goal}, params
 
 

@@ -9,7 +9,7 @@ import pytest
 
 import docrl_jax.envs as envs
 from docrl_jax import pretrained
-from docrl_jax.envs import belief, flyability, guidance
+from docrl_jax.envs import belief, flyability
 
 
 def _env(tank):
@@ -82,7 +82,7 @@ def test_the_route_on_the_belief_goes_round_the_discovered_wall_and_through_its_
     env, b, layout = window_tank
     start, goal = jnp.asarray([-2.0, -3.0, 2.4]), jnp.asarray([-2.0, 3.0, -0.8])
     field = belief.initial_field(goal)
-    plan = jax.jit(lambda f: belief.plan(jnp.asarray(b), f, goal, env.params, guidance.route_cost, sweeps=200))(field)
+    plan = jax.jit(lambda f: belief.plan(jnp.asarray(b), f, goal, env.params, sweeps=200))(field)
     path = np.asarray(flyability.route_path(plan["field"], start))
     assert np.isfinite(np.asarray(plan["field"])[tuple(np.asarray(flyability.nearest_cell(start)[0]))])
     crossing = path[np.argmax(path[:, 1] > 0.0)]
