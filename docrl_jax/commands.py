@@ -23,16 +23,18 @@ from docrl_jax.arguments import OneLineParser, launcher
 class Command(NamedTuple):
     module: str     # its module, whose main(argv) runs it
     summary: str
+    answers_ctrl_c: bool = False   # stops in stages itself (train.loop.Interrupt); others end at the first Ctrl-C
 
 
 COMMANDS = {
-    "train": Command("docrl_jax.train.cli", "train a config into a run directory, or resume one"),
+    "train": Command("docrl_jax.train.cli", "train a config into a run directory, or resume one", True),
     "evaluate": Command("docrl_jax.evaluate.cli", "the paper's evaluation protocol: Table I, CSV/JSON, figures"),
     "render": Command("docrl_jax.evaluate.video", "trials drawn by MuJoCo's renderer to an MP4 or GIF"),
     "export": Command("docrl_jax.export.cli", "a trained actor as ONNX, StableHLO and NumPy artefacts"),
     "robustness": Command("docrl_jax.evaluate.robustness_cli", "policies beyond the protocol: perturbations, "
                                                               "random trips, held-out tanks"),
-    "sweep": Command("docrl_jax.train.sweep_cli", "a hyperparameter grid x seeds, with as few programs as it allows"),
+    "sweep": Command("docrl_jax.train.sweep_cli", "a hyperparameter grid x seeds, with as few programs as it allows",
+                     True),
     "compare": Command("docrl_jax.evaluate.compare", "several evaluations beside the paper's Table I"),
     "tanks": Command("docrl_jax.envs.tanks_cli", "the packaged tanks; check and draw tank files"),
 }
@@ -49,9 +51,9 @@ def build_parser() -> OneLineParser:
     return p
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Runs the subcommand named first in `argv` (default: the process's arguments); returns its exit
-    status. An unknown subcommand is one line naming the nearest and the valid ones, exit status 2."""
+def chosen(argv: Sequence[str] | None = None) -> tuple[str, list[str]]:
+    """(the subcommand named first in `argv` (default: the process's arguments), the rest). An unknown
+    subcommand is one line naming the nearest and the valid ones, exit status 2."""
     from docrl_jax.schema import did_you_mean
     parser = build_parser()
     args = parser.parse_args(sys.argv[1:] if argv is None else list(argv))
@@ -60,11 +62,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command not in COMMANDS:
         parser.error(f"unknown subcommand {args.command!r}{did_you_mean(args.command, COMMANDS)} "
                      f"(valid: {', '.join(COMMANDS)})")
-    return importlib.import_module(COMMANDS[args.command].module).main(args.args)
+    return args.command, args.args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs the subcommand named first in `argv` in this process (`chosen`); returns its exit status."""
+    name, rest = chosen(argv)
+    return importlib.import_module(COMMANDS[name].module).main(rest)
 
 
 def entry() -> None:
-    """The `docrl` console script and `python -m docrl_jax`: `main`, then the process ends as a training
-    command's does (docrl_jax.train.console.exit_process: a third Ctrl-C leaves without an abort)."""
-    from docrl_jax.train.console import exit_process
-    exit_process(main())
+    """The `docrl` console script and `python -m docrl_jax`: the chosen subcommand as the process's
+    work (docrl_jax.train.console.run_main: its exit status; Ctrl-C answered in every phase)."""
+    from docrl_jax.train.console import run_main
+    name, rest = chosen()
+    command = COMMANDS[name]
+    run_main(lambda: importlib.import_module(command.module).main(rest), command.answers_ctrl_c)

@@ -48,7 +48,8 @@ def command(module_name: str, target: str, home: str | None = None) -> None:
     default `target`)."""
     module = sys.modules[module_name]
     if module_name == "__main__":
-        raise SystemExit(importlib.import_module(target).main())
+        from docrl_jax.train.console import run_main
+        run_main(importlib.import_module(target).main)
 
     def __getattr__(name):
         if name.startswith("__"):  # the import system's own look-ups

@@ -1,9 +1,11 @@
 """`docrl` (docrl_jax.commands, also `python -m docrl_jax`): each subcommand is its module's command
-given the rest of the command line; the version; a mistyped subcommand is one line naming the nearest."""
+given the rest of the command line; the version; a mistyped subcommand is one line naming the nearest; a
+Ctrl-C ends a command that is not training in any phase, in one line with exit status 130."""
 
 from __future__ import annotations
 
 import importlib
+import signal
 import subprocess
 import sys
 import tomllib
@@ -12,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from docrl_jax import __version__, commands
+from docrl_jax.train import console
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -80,3 +83,50 @@ def test_tanks_list_names_every_packaged_tank(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert [line.split()[0] for line in lines[:-1]] == tanks.packaged_names()
     assert lines[-1].startswith(f"{len(tanks.packaged_names())} tanks in ")
+
+
+def _interrupt_after_first_line(argv: list[str]) -> tuple[subprocess.CompletedProcess, str]:
+    """Starts `argv`, sends one SIGINT once it has printed its first stdout line, waits for the end (a
+    process that ignores the Ctrl-C fails this as a time-out)."""
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    first = proc.stdout.readline()
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        proc.kill()       # the Ctrl-C was not answered: no process left behind
+        raise
+    return subprocess.CompletedProcess(argv, proc.returncode, first + out, err), first
+
+
+def test_a_ctrl_c_while_xla_computes_ends_the_command_at_once_with_one_line():
+    # The main thread blocks inside one compiled call that never returns (its value stays positive):
+    # Python's own handler would run only after it returned.
+    script = ("from docrl_jax.train.console import run_main\n"
+              "def step(c):\n"   # says 'computing' from inside the compiled loop, at its first iteration
+              "    jax.lax.cond(c[0] == 0, lambda: jax.debug.callback(lambda: print('computing', flush=True)),\n"
+              "                 lambda: None)\n"
+              "    return c[0] + 1, c[1] * 1.0000001 + 1e-9\n"
+              "def main():\n"   # JAX is imported (its threads start) once the command runs, as in every command
+              "    global jax\n"
+              "    import jax, jax.numpy as jnp\n"
+              "    spin = jax.jit(lambda x: jax.lax.while_loop(lambda c: c[1][0] > 0, step, (0, x)))\n"
+              "    jax.block_until_ready(spin(jnp.ones(256)))\n"
+              "    return 0\n"
+              "run_main(main)\n")
+    done, first = _interrupt_after_first_line([sys.executable, "-c", script])
+    assert first == "computing\n"
+    assert done.returncode == 130
+    assert done.stderr.splitlines() == [console.INTERRUPTED_LINE]
+
+
+def test_a_ctrl_c_during_an_evaluation_is_one_line_exit_130_and_keeps_what_was_there(tmp_path):
+    out = tmp_path / "eval"
+    out.mkdir()
+    (out / "kept.txt").write_text("written before")
+    done, first = _interrupt_after_first_line([sys.executable, "-m", "docrl_jax", "evaluate", "--policy", "td3_lstm",
+                                               "--scenarios", "1", "--trials", "5", "--out", str(out)])
+    assert first.startswith("td3_lstm")    # the policy line: the rollout compiles next
+    assert done.returncode == 130, done.stderr
+    assert done.stderr.splitlines()[-1] == console.INTERRUPTED_LINE
+    assert [p.name for p in out.iterdir()] == ["kept.txt"] and (out / "kept.txt").read_text() == "written before"

@@ -130,4 +130,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from docrl_jax.train.console import run_main
+    run_main(main)

@@ -1,6 +1,5 @@
 """`python -m docrl_jax.evaluate`: the evaluation command (docrl_jax.evaluate.cli)."""
-import sys
-
 from docrl_jax.evaluate.cli import main
+from docrl_jax.train.console import run_main
 
-sys.exit(main())
+run_main(main)

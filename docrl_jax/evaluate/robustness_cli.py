@@ -331,4 +331,5 @@ def _benchmark(args, cfg: dict, argv: Sequence[str] | None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from docrl_jax.train.console import run_main
+    run_main(main)

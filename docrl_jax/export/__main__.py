@@ -1,6 +1,5 @@
 """`python -m docrl_jax.export`: the export command (docrl_jax.export.cli)."""
-import sys
-
 from docrl_jax.export.cli import main
+from docrl_jax.train.console import run_main
 
-sys.exit(main())
+run_main(main)

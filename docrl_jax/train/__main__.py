@@ -1,6 +1,6 @@
 """`python -m docrl_jax.train`: the command line (docrl_jax.train.cli) around the trainer program."""
 
 from docrl_jax.train.cli import main
-from docrl_jax.train.console import exit_process
+from docrl_jax.train.console import run_main
 
-exit_process(main())
+run_main(main, answers_ctrl_c=True)   # its three-stage Ctrl-C (docrl_jax.train.loop.Interrupt)

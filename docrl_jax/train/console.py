@@ -1,14 +1,18 @@
-"""How the training commands (train, sweep) talk and end, light enough for a command line to use
-before it imports JAX: their exit codes, their Rich console, and `exit_process`, which ends the process
-safely while a device wait (docrl_jax.train.loop.wait) may still be blocked inside XLA."""
+"""How the commands talk and end, light enough for a command line to use before it imports JAX: their
+exit codes, their Rich console, `exit_process`, which ends the process safely while a device wait
+(docrl_jax.train.loop.wait) may still be blocked inside XLA, and `run_main`, the one way a process runs a
+command: the training commands (train, sweep) answer Ctrl-C in three stages themselves
+(docrl_jax.train.loop.Interrupt), every other command is ended by the first Ctrl-C in any phase
+(`quit_on_ctrl_c`)."""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import sys
 import threading
-from typing import NoReturn
+from typing import Callable, NoReturn
 
 EXIT_OK, EXIT_CONFIG, EXIT_NONFINITE, EXIT_INTERRUPTED = 0, 2, 3, 130
 
@@ -40,3 +44,41 @@ def exit_process(status: int) -> NoReturn:
                 stream.flush()
         os._exit(status)
     raise SystemExit(status)
+
+
+INTERRUPTED_LINE = "interrupted (Ctrl-C): stopped; files it had already written are kept"
+
+
+def quit_on_ctrl_c() -> None:
+    """From now on the first Ctrl-C (SIGINT) ends the process at once with one line on stderr and
+    EXIT_INTERRUPTED, whatever the main thread is doing: importing, compiling, or blocked inside XLA, where
+    Python's own handler would wait until the call returns (and a KeyboardInterrupt raised there can be
+    swallowed or left as a traceback). SIGINT is blocked in this thread and so in every thread started
+    after it (XLA's pools inherit the mask) and taken by a watcher thread that waits for it (sigwait).
+    Call it from the main thread before the command's work starts (before JAX is imported: a thread started
+    earlier could take the signal instead); elsewhere it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+    def watch():
+        signal.sigwait({signal.SIGINT})
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+        with contextlib.suppress(Exception):
+            if sys.stderr.isatty():   # a progress display may have hidden the cursor and left its line open
+                sys.stderr.write("\x1b[?25h\n")
+            sys.stderr.write(f"{INTERRUPTED_LINE}\n")
+            sys.stderr.flush()
+        os._exit(EXIT_INTERRUPTED)
+
+    threading.Thread(target=watch, daemon=True, name="docrl_jax Ctrl-C").start()
+
+
+def run_main(main: Callable[[], int | None], answers_ctrl_c: bool = False) -> NoReturn:
+    """Runs a command's `main()` as the process's work and ends the process with its status
+    (`exit_process`). A command that does not answer Ctrl-C itself (`answers_ctrl_c`) is ended by the
+    first one in any phase (`quit_on_ctrl_c`)."""
+    if not answers_ctrl_c:
+        quit_on_ctrl_c()
+    exit_process(main() or 0)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
-from docrl_jax.train.console import EXIT_CONFIG, exit_process, make_console
+from docrl_jax.train.console import EXIT_CONFIG, make_console, run_main
 
 
 def build_parser() -> OneLineParser:
@@ -67,4 +67,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    exit_process(main())
+    run_main(main, answers_ctrl_c=True)
