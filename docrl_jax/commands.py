@@ -23,18 +23,16 @@ from docrl_jax.arguments import OneLineParser, launcher
 class Command(NamedTuple):
     module: str     # its module, whose main(argv) runs it
     summary: str
-    answers_ctrl_c: bool = False   # stops in stages itself (train.loop.Interrupt); others end at the first Ctrl-C
 
 
 COMMANDS = {
-    "train": Command("docrl_jax.train.cli", "train a config into a run directory, or resume one", True),
+    "train": Command("docrl_jax.train.cli", "train a config into a run directory, or resume one"),
     "evaluate": Command("docrl_jax.evaluate.cli", "the paper's evaluation protocol: Table I, CSV/JSON, figures"),
     "render": Command("docrl_jax.evaluate.video", "trials drawn by MuJoCo's renderer to an MP4 or GIF"),
     "export": Command("docrl_jax.export.cli", "a trained actor as ONNX, StableHLO and NumPy artefacts"),
     "robustness": Command("docrl_jax.evaluate.robustness_cli", "policies beyond the protocol: perturbations, "
                                                               "random trips, held-out tanks"),
-    "sweep": Command("docrl_jax.train.sweep_cli", "a hyperparameter grid x seeds, with as few programs as it allows",
-                     True),
+    "sweep": Command("docrl_jax.train.sweep_cli", "a hyperparameter grid x seeds, with as few programs as it allows"),
     "compare": Command("docrl_jax.evaluate.compare", "several evaluations beside the paper's Table I"),
     "tanks": Command("docrl_jax.envs.tanks_cli", "the packaged tanks; check and draw tank files"),
 }
@@ -76,5 +74,4 @@ def entry() -> None:
     work (docrl_jax.train.console.run_main: its exit status; Ctrl-C answered in every phase)."""
     from docrl_jax.train.console import run_main
     name, rest = chosen()
-    command = COMMANDS[name]
-    run_main(lambda: importlib.import_module(command.module).main(rest), command.answers_ctrl_c)
+    run_main(lambda: importlib.import_module(COMMANDS[name].module).main(rest))

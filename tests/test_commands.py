@@ -120,13 +120,19 @@ def test_a_ctrl_c_while_xla_computes_ends_the_command_at_once_with_one_line():
     assert done.stderr.splitlines() == [console.INTERRUPTED_LINE]
 
 
-def test_a_ctrl_c_during_an_evaluation_is_one_line_exit_130_and_keeps_what_was_there(tmp_path):
-    out = tmp_path / "eval"
+@pytest.mark.parametrize("command", ["evaluate", "train"])
+def test_a_ctrl_c_while_a_command_starts_is_one_line_exit_130_and_keeps_what_was_there(tmp_path, command):
+    # Sent once the command has printed its first line: it is loading or compiling (the training loop's
+    # own three stages begin with its first chunk: tests/train/test_run_safety.py).
+    out = tmp_path / "out"
     out.mkdir()
     (out / "kept.txt").write_text("written before")
-    done, first = _interrupt_after_first_line([sys.executable, "-m", "docrl_jax", "evaluate", "--policy", "td3_lstm",
-                                               "--scenarios", "1", "--trials", "5", "--out", str(out)])
-    assert first.startswith("td3_lstm")    # the policy line: the rollout compiles next
+    argv = {"evaluate": ["evaluate", "--policy", "td3_lstm", "--scenarios", "1", "--trials", "5", "--out", str(out)],
+            "train": ["train", "--config", "td3_lstm", "--run-dir", str(out / "run")]}[command]
+    done, first = _interrupt_after_first_line([sys.executable, "-m", "docrl_jax", *argv])
+    assert "td3_lstm" in first, first    # the policy or the run line
     assert done.returncode == 130, done.stderr
     assert done.stderr.splitlines()[-1] == console.INTERRUPTED_LINE
-    assert [p.name for p in out.iterdir()] == ["kept.txt"] and (out / "kept.txt").read_text() == "written before"
+    assert (out / "kept.txt").read_text() == "written before"
+    if command == "evaluate":
+        assert [p.name for p in out.iterdir()] == ["kept.txt"]

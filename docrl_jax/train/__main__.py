@@ -3,4 +3,4 @@
 from docrl_jax.train.cli import main
 from docrl_jax.train.console import run_main
 
-run_main(main, answers_ctrl_c=True)   # its three-stage Ctrl-C (docrl_jax.train.loop.Interrupt)
+run_main(main)

@@ -1,12 +1,12 @@
 """How the commands talk and end, light enough for a command line to use before it imports JAX: their
 exit codes, their Rich console, `exit_process`, which ends the process safely while a device wait
 (docrl_jax.train.loop.wait) may still be blocked inside XLA, and `run_main`, the one way a process runs a
-command: the training commands (train, sweep) answer Ctrl-C in three stages themselves
-(docrl_jax.train.loop.Interrupt), every other command is ended by the first Ctrl-C in any phase
-(`quit_on_ctrl_c`)."""
+command: a Ctrl-C ends it at once in any phase (`quit_on_ctrl_c`), except inside a training loop, which
+stops in three stages of its own (docrl_jax.train.loop.Interrupt, `passing_ctrl_c`)."""
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import os
 import signal
@@ -48,21 +48,30 @@ def exit_process(status: int) -> NoReturn:
 
 INTERRUPTED_LINE = "interrupted (Ctrl-C): stopped; files it had already written are kept"
 
+# While non-empty, the watcher of `quit_on_ctrl_c` hands each Ctrl-C to the main thread's Python handler
+# (`passing_ctrl_c`): the training loop's stages (docrl_jax.train.loop.Interrupt).
+_passing: list[object] = []
+
 
 def quit_on_ctrl_c() -> None:
-    """From now on the first Ctrl-C (SIGINT) ends the process at once with one line on stderr and
-    EXIT_INTERRUPTED, whatever the main thread is doing: importing, compiling, or blocked inside XLA, where
-    Python's own handler would wait until the call returns (and a KeyboardInterrupt raised there can be
-    swallowed or left as a traceback). SIGINT is blocked in this thread and so in every thread started
-    after it (XLA's pools inherit the mask) and taken by a watcher thread that waits for it (sigwait).
-    Call it from the main thread before the command's work starts (before JAX is imported: a thread started
-    earlier could take the signal instead); elsewhere it does nothing."""
+    """From now on a Ctrl-C (SIGINT) ends the process at once with one line on stderr and EXIT_INTERRUPTED,
+    whatever the main thread is doing: importing, compiling, or blocked inside XLA, where Python's own
+    handler would wait until the call returns (and a KeyboardInterrupt raised there can be swallowed or
+    left as a traceback); inside `passing_ctrl_c` it goes to the main thread's handler instead. SIGINT is
+    blocked in this thread and so in every thread started after it (XLA's pools inherit the mask) and taken
+    by a watcher thread that waits for it (sigwait). Call it from the main thread before the command's work
+    starts (before JAX is imported: a thread started earlier could take the signal instead); elsewhere it
+    does nothing."""
     if threading.current_thread() is not threading.main_thread():
         return
     signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
 
     def watch():
-        signal.sigwait({signal.SIGINT})
+        while True:
+            signal.sigwait({signal.SIGINT})
+            if not _passing:
+                break
+            _thread.interrupt_main(signal.SIGINT)   # runs the handler the loop installed, in the main thread
         with contextlib.suppress(Exception):
             sys.stdout.flush()
         with contextlib.suppress(Exception):
@@ -75,10 +84,20 @@ def quit_on_ctrl_c() -> None:
     threading.Thread(target=watch, daemon=True, name="docrl_jax Ctrl-C").start()
 
 
-def run_main(main: Callable[[], int | None], answers_ctrl_c: bool = False) -> NoReturn:
+@contextlib.contextmanager
+def passing_ctrl_c():
+    """Inside, a Ctrl-C reaches the main thread's Python handler (`signal.signal`'s) as if `quit_on_ctrl_c`
+    had not been called: a loop that stops in stages of its own."""
+    token = object()
+    _passing.append(token)
+    try:
+        yield
+    finally:
+        _passing.remove(token)
+
+
+def run_main(main: Callable[[], int | None]) -> NoReturn:
     """Runs a command's `main()` as the process's work and ends the process with its status
-    (`exit_process`). A command that does not answer Ctrl-C itself (`answers_ctrl_c`) is ended by the
-    first one in any phase (`quit_on_ctrl_c`)."""
-    if not answers_ctrl_c:
-        quit_on_ctrl_c()
+    (`exit_process`); a Ctrl-C is answered in every phase (`quit_on_ctrl_c`)."""
+    quit_on_ctrl_c()
     exit_process(main() or 0)

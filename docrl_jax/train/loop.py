@@ -32,7 +32,7 @@ import jax
 import numpy as np
 
 from docrl_jax.train import metrics
-from docrl_jax.train.console import EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, waiters
+from docrl_jax.train.console import EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, passing_ctrl_c, waiters
 from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.metrics import duration
 
@@ -112,6 +112,8 @@ class Interrupt:
         self._old: dict = {}
 
     def __enter__(self):
+        self._passing = passing_ctrl_c()     # a command's Ctrl-C watcher hands the presses to `_handle`
+        self._passing.__enter__()
         for sig in (signal.SIGINT, signal.SIGTERM):
             try:
                 self._old[sig] = signal.signal(sig, self._handle)
@@ -122,6 +124,7 @@ class Interrupt:
     def __exit__(self, *exc):
         for sig, old in self._old.items():
             signal.signal(sig, old)
+        self._passing.__exit__(None, None, None)
 
     @property
     def requested(self) -> bool:
