@@ -32,8 +32,7 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta  # noqa: E402
+from docrl_jax.benchmarking import run_meta
 
 KEYS = ("spawn_to_first_chunk_s", "launch_to_compiled_s", "launch_to_training_s", "launch_to_first_chunk_s",
         "compile_s", "first_eval_row_s", "spawn_to_exit_s")

@@ -13,18 +13,10 @@ import csv
 import glob
 import json
 import os
-import re
 import statistics
 import sys
 
-
-def chunk_steps_per_s(log: str) -> float:
-    """Median env steps/s of the chunks that learned on every iteration (the trainer's --no-progress
-    lines that give an ETA), evaluations excluded."""
-    rates = [float(m.group(1).replace(",", "")) for line in open(log)
-             if "ETA" in line and "once learning" not in line
-             for m in [re.match(r"[\d,]+ steps\s+([\d,]+) steps/s", line)] if m]
-    return statistics.median(rates)
+from docrl_jax.benchmarking import chunk_steps_per_s
 
 
 def launch(run_dir: str, ttt: dict, log: str) -> dict:

@@ -17,13 +17,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 VARIANTS = ("base", "no_reset", "reset_cast", "no_updates", "no_lanes")
 _SETS = {"no_updates": ["train.updates_per_step=0"], "no_lanes": ["train.eval_alongside=false"]}
@@ -66,7 +64,7 @@ def child(config_name: str, variant: str, sets: list[str]) -> dict:
     _leave_out(variant)
     config = programs.program_config(load_config(config_name, sets + _SETS.get(variant, [])), False)
     devices = tuple(jax.devices()[:1])
-    init, chunk, _, _ = programs._jitted(config, devices, False)
+    init, chunk, _, _ = programs.jitted_programs(config, devices, False)
     keys = jax.ShapeDtypeStruct((1, 2), jnp.uint32)
     t0 = time.perf_counter()
     shape = jax.eval_shape(init, keys, jax.ShapeDtypeStruct((), jnp.int32))
@@ -90,7 +88,7 @@ def main() -> None:
     if args.child:
         print("RESULT " + json.dumps(child(args.config, args.child, args.set)), flush=True)
         return
-    from common import run_meta, write_results   # noqa: E402  (benchmarks/common.py)
+    from docrl_jax.benchmarking import run_meta, write_results
 
     meta, rows, summary = run_meta(), {v: [] for v in args.variants}, []
     for r in range(args.rounds):

@@ -21,9 +21,8 @@ import subprocess
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from common import run_meta  # noqa: E402
+from docrl_jax.benchmarking import run_meta
 
 # The files whose VLOG(1) timers say where a GPU compile goes.
 VMODULE = ("hlo_pass_pipeline=1,gpu_compiler=1,nvptx_compiler=1,compile_module_to_llvm_ir=1,"

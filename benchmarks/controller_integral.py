@@ -17,11 +17,9 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 HOVER = (-1.0, 0.0, 0.0)
 

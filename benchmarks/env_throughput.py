@@ -16,52 +16,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import sys
-import time
 
-import jax
 import yaml
 
-import docrl_jax.envs as envs
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta, write_results  # noqa: E402
-
-
-def measure(scenario: int, num_envs: int, steps: int, repeats: int, variant: str, unroll: int | None = None,
-            overrides: dict | None = None) -> dict:
-    env = envs.make(scenario, auto_reset=(variant == "autoreset"), substep_unroll=unroll, **(overrides or {}))
-    reset = jax.jit(jax.vmap(env.reset))
-
-    def rollout(state, key):
-        def body(s, k):
-            a = jax.random.uniform(k, (num_envs, 3), minval=-1.0, maxval=1.0)
-            s = jax.vmap(env.step)(s, a)
-            return s, s.reward.sum()
-        state, rewards = jax.lax.scan(body, state, jax.random.split(key, steps))
-        return state, rewards.sum()
-
-    state = reset(jax.random.split(jax.random.PRNGKey(0), num_envs))
-    jax.block_until_ready(state)
-    t0 = time.perf_counter()
-    compiled = jax.jit(rollout, donate_argnums=0).lower(state, jax.random.PRNGKey(1)).compile()
-    compile_s = time.perf_counter() - t0
-    state, _ = compiled(state, jax.random.PRNGKey(2))  # warm-up
-    jax.block_until_ready(state)
-    times = []
-    for r in range(repeats):
-        t0 = time.perf_counter()
-        state, total = compiled(state, jax.random.PRNGKey(3 + r))
-        jax.block_until_ready(total)
-        times.append(time.perf_counter() - t0)
-    med = statistics.median(times)
-    sps = num_envs * steps / med
-    return {"scenario": scenario, "env": overrides or {}, "variant": variant, "substep_unroll": env._unroll, "num_envs": num_envs, "steps_per_call": steps,
-            "repeats": repeats, "compile_s": round(compile_s, 2), "call_s_median": round(med, 5),
-            "call_s_all": [round(t, 5) for t in times], "control_steps_per_s": round(sps),
-            "sim_seconds_per_s": round(sps * env.control_dt),
-            "physics_steps_per_s": round(sps * env.params.substeps)}
+from docrl_jax.benchmarking import env_throughput, run_meta, write_results
 
 
 def main(argv=None) -> int:
@@ -101,7 +61,7 @@ def main(argv=None) -> int:
         for unroll in args.unroll:
             for n in args.num_envs:
                 for scenario in args.scenarios:
-                    rows.append(measure(scenario, n, args.steps, args.repeats, variant, unroll, overrides))
+                    rows.append(env_throughput(scenario, n, args.steps, args.repeats, variant, unroll, overrides))
                 print(json.dumps(rows[-1]), flush=True)
                 table = write_results(args.out, "env_throughput", "Environment throughput", meta, rows, columns)
     print(table)

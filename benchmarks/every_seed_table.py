@@ -31,47 +31,15 @@ import json
 import os
 import statistics
 import sys
-import tarfile
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ab_summary import chunk_steps_per_s  # noqa: E402
-from time_to_success import read_rows, reached  # noqa: E402
+from docrl_jax.benchmarking import (GOAL, SCENARIO_COLUMNS, TARGET, chunk_steps_per_s, goal_counts, pair, pct, read_rows,
+                                    reached, unpack)
 
 from docrl_jax import runs  # noqa: E402
 from docrl_jax.config import differences  # noqa: E402
 from docrl_jax.errors import RunDirError  # noqa: E402
-
-TARGET = 0.9
-# The run goal for every policy, by the evaluator: (scenario, success both ways at least).
-GOAL = ((2, 0.95), (1, 0.90), (3, 0.90))
-SCENARIO_COLUMNS = (1, 2, 3)
-DIRS = ("air_to_water", "water_to_air")
-
-
-def unpack(source: str, into: Path, scratch: Path | None = None) -> Path:
-    """The job's packs (the $OUT tar of gpu_lanes, a folder holding pack/ or pack/ itself) unpacked
-    into `into`: runs/NAME, eval/NAME, the logs and `times`. A tar is first extracted into `scratch`
-    (default into/tar; several jobs unpacked into one `into` need one each). Returns `into`."""
-    src = Path(source)
-    if src.is_file():
-        scratch = into / "tar" if scratch is None else scratch
-        with tarfile.open(src) as t:
-            t.extractall(scratch, filter="data")
-        src = scratch
-    pack = src / "pack" if (src / "pack").is_dir() else src
-    for f in sorted(pack.glob("runs_*.tgz")):
-        with tarfile.open(f) as t:
-            t.extractall(into / "runs", filter="data")
-    for f in sorted(pack.glob("eval_*.tgz")):
-        with tarfile.open(f) as t:
-            t.extractall(into, filter="data")
-    for name in ("times", "gpu.txt"):
-        if (pack / name).is_file():
-            (into / name).write_bytes((pack / name).read_bytes())
-    return into
-
 
 def launch_times(path: Path) -> dict[str, float]:
     """NAME -> seconds from its `train start` to its `train rc=` line in gpu_lanes' times file."""
@@ -151,31 +119,6 @@ def launch(work: Path, run_dir: Path, ends: dict) -> dict:
             "train_best": best_record(run_dir) if (run_dir / "checkpoints").is_dir() else None,
             "eval_final": evaluator_success(work / "eval" / f"{name}_final"),
             "eval_best": evaluator_success(work / "eval" / f"{name}_best")}
-
-
-def meets_goal(ev: dict | None) -> bool | None:
-    if ev is None:
-        return None
-    return all(ev.get((s, d), 0.0) >= bar for s, bar in GOAL for d in DIRS)
-
-
-def goal_counts(evs: list[dict]) -> tuple[int, int, int]:
-    """How many of the evaluator's results `evs` meet the goal's scenario-2 bar, its scenarios 1 and 3 bars
-    (both ways each), and the whole goal."""
-    bar = dict(GOAL)
-    s2 = sum(all(e.get((2, d), 0) >= bar[2] for d in DIRS) for e in evs)
-    s13 = sum(all(e.get((s, d), 0) >= bar[s] for s in (1, 3) for d in DIRS) for e in evs)
-    return s2, s13, sum(bool(meets_goal(e)) for e in evs)
-
-
-def pct(x: float | None) -> str:
-    return "–" if x is None else f"{100 * x:.0f}"
-
-
-def pair(ev: dict | None, scenario: int) -> str:
-    if ev is None or (scenario, DIRS[0]) not in ev:
-        return "–"
-    return " / ".join(pct(ev[(scenario, d)]) for d in DIRS)
 
 
 def num(x, fmt: str = ".1f") -> str:

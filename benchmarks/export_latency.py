@@ -52,9 +52,9 @@ def cpu_model() -> str:
 
 def worker(artefact: str, export_dir: Path, run: str, steps: int, repeats: int) -> dict:
     """Times one artefact in this process; returns per-repeat medians and all step times (ns)."""
-    sys.path.insert(0, str(ROOT))
-    from docrl_jax.export import _check_observations
-    obs = _check_observations(steps + WARMUP, seed=1)
+    from docrl_jax.export import MANIFEST_FILE, check_observations
+    size = json.loads((export_dir / MANIFEST_FILE).read_text())["observation"]["size"]
+    obs = check_observations(steps + WARMUP, size, seed=1)
     if artefact == "jax":
         import jax
 
@@ -102,7 +102,6 @@ def main(argv=None) -> int:
         print(json.dumps(worker(args.worker, Path(args.export_dir), args.run, args.steps, args.repeats)))
         return 0
 
-    sys.path.insert(0, str(ROOT))
     import datetime as dt
 
     from docrl_jax.export import export_policy

@@ -31,16 +31,15 @@ STEPS = 300
 
 def prepare(out: Path) -> None:
     root = Path(__file__).resolve().parents[1]
-    sys.path.insert(0, str(root))
     import jax
 
-    from docrl_jax.export import _check_observations, export_policy
+    from docrl_jax.export import MANIFEST_FILE, check_observations, export_policy
     from docrl_jax.runs import load_policy
     run = root / "tests" / "data" / "trained" / "td3_lstm"
     export_policy(run, out / "export", which="final", platforms=("cpu", "cuda"), force=True)
     policy = load_policy(run, which="final")
     act = jax.jit(policy.act)
-    obs, carry, actions = _check_observations(STEPS, seed=5), policy.init_carry(), []
+    obs, carry, actions = check_observations(STEPS, json.loads((out / "export" / MANIFEST_FILE).read_text())["observation"]["size"], seed=5), policy.init_carry(), []
     for o in obs:
         carry, action = act(policy.params, carry, o, {}, None)
         actions.append(np.asarray(action))

@@ -34,8 +34,7 @@ import tempfile
 import threading
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta  # noqa: E402
+from docrl_jax.benchmarking import run_meta
 
 
 def _value(text: str):

@@ -4,19 +4,17 @@
 
 The side (`dense` or `sparse`) is set on every model the process loads (mujoco.MjModel.opt.jacobian;
 the scenes' own setting is assets/common.xml's); the rest is the package as it is. Measures, in turn:
-the env alone (`env_throughput.measure`: scenario 2, no auto-reset, 100 control steps of random actions
+the env alone (`docrl_jax.benchmarking.env_throughput`: scenario 2, no auto-reset, 100 control steps of random actions
 per jitted scan, median of 5 calls after a warm-up) and the default td3_lstm's training chunk
-(`train_throughput.measure`: 50 iterations, every one learning, median of 5 chunks after a warm-up), both
+(`docrl_jax.benchmarking.train_throughput`: 50 iterations, every one learning, median of 5 chunks after a warm-up), both
 at `--num-envs` (4,096). Appends one JSON line per process to $OUT/sparse_ab.jsonl.
 """
 import argparse
 import json
 import os
-import sys
 
 import mujoco
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("mode", choices=("dense", "sparse"))
@@ -32,11 +30,10 @@ def _with_side(path, *a, **kw):
 
 
 mujoco.MjModel.from_xml_path = _with_side   # before the env modules load any model
-import env_throughput  # noqa: E402
-import train_throughput  # noqa: E402
+from docrl_jax.benchmarking import env_throughput, train_throughput  # noqa: E402
 
-env = env_throughput.measure(2, args.num_envs, 100, 5, "plain")
-chunk = train_throughput.measure("td3_lstm", args.num_envs, 50, 5, [])
+env = env_throughput(2, args.num_envs, 100, 5, "plain")
+chunk = train_throughput("td3_lstm", args.num_envs, 50, 5, [])
 row = {"mode": args.mode, "env_steps_per_s_env_alone": env["control_steps_per_s"], "env_times": env["call_s_all"],
        "chunk_compile_s": chunk["compile_s"], "chunk_s": chunk["chunk_s_all"],
        "learner_env_steps_per_s": chunk["env_steps_per_s"], "learn": chunk["learning_iters_per_chunk"]}

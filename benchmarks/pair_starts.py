@@ -12,10 +12,8 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta, write_results  # noqa: E402
+from docrl_jax.benchmarking import run_meta, write_results
 
 
 def main(argv=None) -> int:

@@ -33,10 +33,8 @@ import json
 import math
 import os
 import statistics
-import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from peers import DEFAULT_RECIPE, recipe  # noqa: E402
+from docrl_jax.benchmarking import DEFAULT_PEER_RECIPE, peer_recipe
 
 
 def our_groups(paths: list[str]) -> dict[str, list[dict]]:
@@ -76,10 +74,10 @@ def peer_groups(paths: list[str]) -> dict[str, list[dict]]:
             d = json.load(f)
         for r in d["runs"]:
             final = r["final"] or {}
-            name = r.get("recipe", DEFAULT_RECIPE)
-            published = recipe(name, r["trainer"])[0]
+            name = r.get("recipe", DEFAULT_PEER_RECIPE)
+            published = peer_recipe(name, r["trainer"])[0]
             changed = {k: v for k, v in r["config"].items() if published.get(k) != v}
-            parts = ([] if name == DEFAULT_RECIPE else [f"{name} recipe"]) + [f"{k}={v}" for k, v in changed.items()]
+            parts = ([] if name == DEFAULT_PEER_RECIPE else [f"{name} recipe"]) + [f"{k}={v}" for k, v in changed.items()]
             label = f"Brax {r['trainer']} (" + ("; ".join(parts) if parts else "Brax's defaults") + ")"
             groups.setdefault(label, []).append({
                 "seed": r["seed"], "reached": r["reached"], "time": r.get("time_to_target_s"),

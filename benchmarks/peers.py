@@ -26,7 +26,7 @@ in). The run then stops (Brax has no early stop: the callback raises) unless --t
 does not reach the target within --budget-s is stopped at its next evaluation and reported as not
 reached, with its best.
 
-Hyperparameters: --recipe picks a published recipe (RECIPES below: Brax's Ant recipes, the default,
+Hyperparameters: --recipe picks a published recipe (docrl_jax.benchmarking.PEER_RECIPES: Brax's Ant recipes, the default,
 or MuJoCo Playground's dm_control-suite or locomotion recipes, networks included), with our episode
 length 500. --set and --sweep change its train() arguments (KEY or TRAINER.KEY; a KEY applies to each
 trainer whose `train` takes it; unknown keys are an error naming the valid ones).
@@ -50,56 +50,9 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta, write_results  # noqa: E402
+from docrl_jax.benchmarking import DEFAULT_PEER_RECIPE, PEER_RECIPES, peer_recipe, run_meta, write_results
 
 TRAINERS = ("sac", "ppo")
-# Published recipes: name -> trainer -> (brax train() kwargs, network kwargs). Our episode length (500)
-# replaces each recipe's own, and the paper's discount 0.99 Brax's Ant recipes'.
-#   brax_ant: Brax's Ant recipes (brax README / training notebook). SAC num_envs 128, batch 512, 64
-#     gradient updates per step, lr 6e-4, min replay 8192; PPO num_envs 4096, batch 2048, unroll 5, 32
-#     minibatches, 4 updates per batch, lr 3e-4, entropy 1e-2, reward scaling 10. Networks: Brax's
-#     defaults (SAC 256-256; PPO policy 32x4, value 256x5).
-#   playground_dm_control: MuJoCo Playground's tuned dm_control-suite recipes
-#     (mujoco_playground/config/dm_control_suite_params.py, the settings every task shares).
-#   playground_locomotion: MuJoCo Playground's locomotion PPO recipe (locomotion_params.py, its default:
-#     8,192 envs, batch 256, unroll 20, discount 0.97, gradient clipping 1; policy 128x4, value 256x5).
-RECIPES = {
-    "brax_ant": {
-        "sac": (dict(num_timesteps=20_000_000, num_evals=50, episode_length=500, action_repeat=1, num_envs=128,
-                     batch_size=512, grad_updates_per_step=64, learning_rate=6e-4, discounting=0.99,
-                     reward_scaling=1.0, normalize_observations=True, min_replay_size=8192,
-                     max_replay_size=1_048_576, num_eval_envs=128, deterministic_eval=True),
-                {"hidden_layer_sizes": (256, 256)}),
-        "ppo": (dict(num_timesteps=200_000_000, num_evals=50, episode_length=500, action_repeat=1, num_envs=4096,
-                     batch_size=2048, unroll_length=5, num_minibatches=32, num_updates_per_batch=4,
-                     learning_rate=3e-4, entropy_cost=1e-2, discounting=0.99, reward_scaling=10.0,
-                     normalize_observations=True, num_eval_envs=128, deterministic_eval=True),
-                {"policy_hidden_layer_sizes": (32, 32, 32, 32), "value_hidden_layer_sizes": (256,) * 5}),
-    },
-    "playground_dm_control": {
-        "sac": (dict(num_timesteps=5_000_000, num_evals=10, episode_length=500, action_repeat=1, num_envs=128,
-                     batch_size=512, grad_updates_per_step=8, learning_rate=1e-3, discounting=0.99,
-                     reward_scaling=1.0, normalize_observations=True, min_replay_size=8192,
-                     max_replay_size=4 * 1_048_576, num_eval_envs=128, deterministic_eval=True),
-                {"hidden_layer_sizes": (256, 256), "q_network_layer_norm": True}),
-        "ppo": (dict(num_timesteps=60_000_000, num_evals=10, episode_length=500, action_repeat=1, num_envs=2048,
-                     batch_size=1024, unroll_length=30, num_minibatches=32, num_updates_per_batch=16,
-                     learning_rate=1e-3, entropy_cost=1e-2, discounting=0.995, reward_scaling=10.0,
-                     normalize_observations=True, num_resets_per_eval=10, num_eval_envs=128,
-                     deterministic_eval=True),
-                {"policy_hidden_layer_sizes": (32, 32, 32, 32), "value_hidden_layer_sizes": (256,) * 5}),
-    },
-    "playground_locomotion": {
-        "ppo": (dict(num_timesteps=100_000_000, num_evals=10, episode_length=500, action_repeat=1, num_envs=8192,
-                     batch_size=256, unroll_length=20, num_minibatches=32, num_updates_per_batch=4,
-                     learning_rate=3e-4, entropy_cost=1e-2, discounting=0.97, reward_scaling=1.0,
-                     max_grad_norm=1.0, normalize_observations=True, num_resets_per_eval=10,
-                     num_eval_envs=128, deterministic_eval=True),
-                {"policy_hidden_layer_sizes": (128,) * 4, "value_hidden_layer_sizes": (256,) * 5}),
-    },
-}
-DEFAULT_RECIPE = "brax_ant"
 SMOKE = {
     "sac": dict(num_timesteps=64, num_evals=2, episode_length=20, num_envs=4, batch_size=8, grad_updates_per_step=1,
                 min_replay_size=8, max_replay_size=512, num_eval_envs=2),
@@ -154,20 +107,10 @@ def _targets(key: str, trainers, option: str) -> list[tuple[str, str]]:
     return out
 
 
-def recipe(name: str, trainer: str) -> tuple[dict, dict]:
-    """(train kwargs, network kwargs) of a published recipe; an error names the valid choices."""
-    if name not in RECIPES:
-        raise SystemExit(f"--recipe {name!r}: unknown; valid: {', '.join(RECIPES)}")
-    if trainer not in RECIPES[name]:
-        raise SystemExit(f"--recipe {name!r} has no {trainer} recipe; it has: {', '.join(RECIPES[name])}")
-    cfg, nets = RECIPES[name][trainer]
-    return dict(cfg), dict(nets)
-
-
 def configs(args) -> list[tuple[str, dict, dict, str]]:
     """(trainer, brax train kwargs, network kwargs, label naming the recipe and sweep point) for every
     trainer and sweep point."""
-    recipes = {t: recipe(args.recipe, t) for t in args.trainers}
+    recipes = {t: peer_recipe(args.recipe, t) for t in args.trainers}
     base = {t: {**recipes[t][0], **(SMOKE[t] if args.smoke else {})} for t in args.trainers}
     nets = {t: {**recipes[t][1], **(SMOKE_NETWORKS[t] if args.smoke else {})} for t in args.trainers}
     for item in args.set:
@@ -188,7 +131,7 @@ def configs(args) -> list[tuple[str, dict, dict, str]]:
         names = [n for n, _ in sweeps[t]]
         for combo in itertools.product(*[v for _, v in sweeps[t]]) if names else [()]:
             point = dict(zip(names, combo))
-            name = [t] + ([args.recipe] if args.recipe != DEFAULT_RECIPE else [])
+            name = [t] + ([args.recipe] if args.recipe != DEFAULT_PEER_RECIPE else [])
             out.append((t, {**base[t], **point}, nets[t], " ".join(name + [f"{k}={v}" for k, v in point.items()])))
     return out
 
@@ -442,8 +385,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--trainers", nargs="+", choices=TRAINERS, default=list(TRAINERS))
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    ap.add_argument("--recipe", default=DEFAULT_RECIPE, choices=sorted(RECIPES),
-                    help="the published recipe the runs start from (RECIPES; default: Brax's Ant recipes)")
+    ap.add_argument("--recipe", default=DEFAULT_PEER_RECIPE, choices=sorted(PEER_RECIPES),
+                    help="the published recipe the runs start from (PEER_RECIPES; default: Brax's Ant recipes)")
     ap.add_argument("--set", action="append", default=[], metavar="[TRAINER.]KEY=VALUE",
                     help="a brax train() argument for every run (e.g. sac.learning_rate=3e-4, num_envs=256)")
     ap.add_argument("--sweep", action="append", default=[], metavar="[TRAINER.]KEY=V1,V2",

@@ -23,8 +23,7 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta  # noqa: E402
+from docrl_jax.benchmarking import run_meta
 
 PHASES = ("compile", "load", "rebuild", "reload")
 

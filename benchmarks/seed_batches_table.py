@@ -26,9 +26,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from every_seed_table import GOAL, SCENARIO_COLUMNS, TARGET, goal_counts, pair, pct, unpack  # noqa: E402
-from time_to_success import read_rows, reached  # noqa: E402
+from docrl_jax.benchmarking import GOAL, SCENARIO_COLUMNS, TARGET, goal_counts, pair, pct, read_rows, reached, unpack
 
 from docrl_jax.train import best_policy  # noqa: E402
 

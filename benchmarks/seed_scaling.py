@@ -30,7 +30,6 @@ import statistics
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 SMOKE_DEVICES = 4
 SMOKE_SETS = ["env.max_episode_steps=20", "agent.actor_hidden=[8]", "agent.critic_hidden=[16,16]",

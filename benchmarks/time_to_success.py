@@ -23,7 +23,6 @@ the trainer's own default. Writes time_to_success_<tag>.json / .md / per-seed lo
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import shutil
@@ -34,28 +33,9 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta  # noqa: E402
+from docrl_jax.benchmarking import read_rows, reached, run_meta
 
 from docrl_jax.train.metrics import FAILURE_COLUMNS  # noqa: E402
-
-
-def read_rows(path: str) -> list[dict]:
-    if not os.path.exists(path):
-        return []
-    with open(path) as f:
-        return [r for r in csv.DictReader(f)]
-
-
-def reached(rows: list[dict], target: float) -> dict | None:
-    """The first row (one seed) with both paper directions >= target."""
-    for r in rows:
-        try:
-            if float(r["success_air_to_water"]) >= target and float(r["success_water_to_air"]) >= target:
-                return r
-        except (KeyError, ValueError):
-            continue
-    return None
 
 
 def run_seed(args, seed: int, cache_dir: str | None, out_dir: str, tag: str) -> dict:

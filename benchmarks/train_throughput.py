@@ -18,46 +18,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import sys
-import time
-
-import jax
-
-from docrl_jax.config import load_config
-from docrl_jax.train import make_trainer
-
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta, time_chunks, write_results  # noqa: E402
 
 
-def measure(name: str, num_envs: int, iters: int, repeats: int, sets: list[str]) -> dict:
-    # 128 steps of history per env (the default 50,000 transitions hold only 12 at 4,096 envs).
-    overrides = [f"env.num_envs={num_envs}", f"train.log_every={num_envs * iters}", "train.start_steps=0",
-                 "train.num_seeds=1", *sets]
-    if load_config(name).replay.buffer_size < 128 * num_envs:
-        overrides.insert(4, f"replay.buffer_size={128 * num_envs}")
-    config = load_config(name, overrides)
-    trainer = make_trainer(config)
-    state = jax.jit(trainer.init)(jax.random.PRNGKey(0))
-    jax.block_until_ready(state)
-    t0 = time.perf_counter()
-    chunk = jax.jit(trainer.chunk, donate_argnums=0).lower(state).compile()
-    compile_s = time.perf_counter() - t0
-    state, times, learn = time_chunks(chunk, state, repeats)
-    med = statistics.median(times)
-    stats = jax.devices()[0].memory_stats() or {}
-    upd = config.train.updates_per_step
-    trained = config.replay.seq_len - config.replay.burn_in
-    return {"config": name, "algo": config.agent.algo, "num_envs": num_envs, "iters_per_chunk": trainer.iters_per_chunk,
-            "updates_per_step": upd, "batch_size": config.replay.batch_size, "seq_len": config.replay.seq_len,
-            "compile_s": round(compile_s, 2), "chunk_s_median": round(med, 4), "chunk_s_all": [round(t, 4) for t in times],
-            "learning_iters_per_chunk": learn, "env_steps_per_s": round(trainer.steps_per_chunk / med),
-            "grad_updates_per_s": round(trainer.iters_per_chunk * upd / med, 1),
-            "trained_steps_per_update": config.replay.batch_size * trained,
-            "trained_samples_per_s": round(trainer.iters_per_chunk * upd * config.replay.batch_size * trained / med),
-            "peak_gpu_memory_gib": round(stats.get("peak_bytes_in_use", 0) / 2**30, 3) if stats else None,
-            "overrides": overrides}
+
+from docrl_jax.benchmarking import run_meta, train_throughput, write_results
 
 
 def main(argv=None) -> int:
@@ -79,7 +44,7 @@ def main(argv=None) -> int:
     rows, table = [], ""
     for name in args.configs:
         for n in args.num_envs:
-            rows.append(measure(name, n, args.iters, args.repeats, args.set))
+            rows.append(train_throughput(name, n, args.iters, args.repeats, args.set))
             print(json.dumps(rows[-1]), flush=True)
             table = write_results(args.out, args.stem, "Trainer throughput", meta, rows, columns)
     print(table)

@@ -31,7 +31,6 @@ import json
 import os
 import re
 import statistics
-import sys
 import time
 
 import jax
@@ -41,8 +40,7 @@ from docrl_jax.algorithms import make_agent
 from docrl_jax.config import load_config
 from docrl_jax.envs import ACTION_SIZE, OBS_SIZE
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import run_meta, write_results  # noqa: E402
+from docrl_jax.benchmarking import run_meta, write_results
 
 DEFAULT_VARIANTS = (
     "default|default|",

@@ -22,8 +22,7 @@ import statistics
 import sys
 from collections import defaultdict
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from time_to_success import reached, read_rows  # noqa: E402
+from docrl_jax.benchmarking import reached, read_rows
 
 
 def run_rows(run_dir: str) -> list[dict]:

@@ -34,7 +34,6 @@ import tempfile
 import time
 
 T_LAUNCH = float(os.environ.get("WTG_LAUNCH", time.time()))
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 
 def _mark(marks: list, name: str, t0: float) -> float:
@@ -65,7 +64,7 @@ def startup(config_name: str, cache: str) -> list[dict]:
     trainer = make_trainer(program_store.program_config(config))
     t = _mark(marks, "make_trainer (MJCF parse, MJX model, env's first forward)", t)
     import jax.numpy as jnp
-    init, chunk, evaluate, eval_starts = programs._jitted(program_store.program_config(config), (devices[0],), False)
+    init, chunk, evaluate, eval_starts = programs.jitted_programs(program_store.program_config(config), (devices[0],), False)
     n = config.train.num_seeds
     keys = jax.ShapeDtypeStruct((n, 2), jnp.uint32)
     total = jax.ShapeDtypeStruct((), jnp.int32)
@@ -122,7 +121,7 @@ def iteration(config_name: str, iters: int) -> tuple[list[dict], dict]:
     from docrl_jax.networks import make_critic
     from docrl_jax.config import load_config
     from docrl_jax.replay import make_sequence_buffer
-    from docrl_jax.train.trainer import _buffer_step, make_trainer
+    from docrl_jax.train.trainer import buffer_step, make_trainer
 
     config = load_config(config_name)
     tr = make_trainer(config)
@@ -152,7 +151,7 @@ def iteration(config_name: str, iters: int) -> tuple[list[dict], dict]:
     add("act: actor + exploration noise",
         _per_rep(lambda c: agent.explore(rs.agent, c[0], c[1], obs + 1e-9 * c[2][:, :1], rs.start, key,
                                          progress), (rs.carry, rs.noise, actions), iters, calls))
-    example = _buffer_step(obs, actions, rs.ep_return, obs, rs.start, rs.start, rs.start, rs.carry)
+    example = buffer_step(obs, actions, rs.ep_return, obs, rs.start, rs.start, rs.start, rs.carry)
     add("replay insert", _per_rep(lambda b: buffer.add(b, example), rs.buffer, iters, calls))
     buf = rs.buffer
     add(f"sample one batch ({r.batch_size:,} x {r.seq_len})",

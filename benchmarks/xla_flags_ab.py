@@ -28,7 +28,6 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 
 def child(config_name: str, sets: list[str], warmup: int, chunks: int, evals: int) -> dict:

@@ -71,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def entry() -> None:
     """The `docrl` console script and `python -m docrl_jax`: the chosen subcommand as the process's
-    work (docrl_jax.train.console.run_main: its exit status; Ctrl-C answered in every phase)."""
-    from docrl_jax.train.console import run_main
+    work (docrl_jax.console.run_main: its exit status; Ctrl-C answered in every phase)."""
+    from docrl_jax.console import run_main
     name, rest = chosen()
     run_main(lambda: importlib.import_module(COMMANDS[name].module).main(rest))

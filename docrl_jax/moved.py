@@ -22,6 +22,7 @@ MOVED_MODULES = {
     "docrl_jax.best_policy": "docrl_jax.train.best_policy",
     "docrl_jax.protocol": "docrl_jax.evaluate.protocol",
     "docrl_jax.paper_results": "docrl_jax.evaluate.paper_results",
+    "docrl_jax.train.console": "docrl_jax.console",
 }
 
 
@@ -48,7 +49,7 @@ def command(module_name: str, target: str, home: str | None = None) -> None:
     default `target`)."""
     module = sys.modules[module_name]
     if module_name == "__main__":
-        from docrl_jax.train.console import run_main
+        from docrl_jax.console import run_main
         run_main(importlib.import_module(target).main)
 
     def __getattr__(name):

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from docrl_jax import __version__, commands
-from docrl_jax.train import console
+from docrl_jax import console
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -102,7 +102,7 @@ def _interrupt_after_first_line(argv: list[str]) -> tuple[subprocess.CompletedPr
 def test_a_ctrl_c_while_xla_computes_ends_the_command_at_once_with_one_line():
     # The main thread blocks inside one compiled call that never returns (its value stays positive):
     # Python's own handler would run only after it returned.
-    script = ("from docrl_jax.train.console import run_main\n"
+    script = ("from docrl_jax.console import run_main\n"
               "def step(c):\n"   # says 'computing' from inside the compiled loop, at its first iteration
               "    jax.lax.cond(c[0] == 0, lambda: jax.debug.callback(lambda: print('computing', flush=True)),\n"
               "                 lambda: None)\n"

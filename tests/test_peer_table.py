@@ -59,11 +59,3 @@ def test_recipe_runs_group_by_recipe_and_keep_recorded_times():
     recorded = sorted(r["time_to_target_s"] for f in files for r in json.load(open(f))["runs"])
     assert sorted(r["time"] for r in loco) == recorded
     assert [r["seed"] for r in groups["Brax ppo (num_envs=8192)"]] == [0]
-
-
-def test_a_recipe_without_the_trainer_is_refused_naming_what_it_has():
-    import peers
-    with pytest.raises(SystemExit, match="no sac recipe; it has: ppo"):
-        peers.recipe("playground_locomotion", "sac")
-    cfg, nets = peers.recipe("playground_dm_control", "sac")
-    assert nets["q_network_layer_norm"] is True and cfg["grad_updates_per_step"] == 8

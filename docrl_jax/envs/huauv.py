@@ -148,7 +148,8 @@ class HUAUVEnv:
         mujoco.mj_forward(self.mj_model, mj_data)
         self._data0 = mjx.put_data(self.mj_model, mj_data, device=device)
         self._wind_every = max(1, int(round(params.wind_period / params.control_dt)))
-        self._unroll = params.substep_unroll or (1 if jax.default_backend() == "cpu" else 2)
+        # physics substeps unrolled per scan iteration (params.substep_unroll, or the backend's best)
+        self.substep_unroll = params.substep_unroll or (1 if jax.default_backend() == "cpu" else 2)
 
     @property
     def control_dt(self) -> float:
@@ -316,7 +317,7 @@ class HUAUVEnv:
 
         prev_dist = jnp.linalg.norm(sim.goal - sim.data.qpos[:3])
         (data, thrust, integral), _ = jax.lax.scan(substep, (sim.data, sim.thrust, sim.vel_integral), None,
-                                                   length=p.substeps, unroll=self._unroll)
+                                                   length=p.substeps, unroll=self.substep_unroll)
 
         # 4. Sensors, once per control step.
         position, rot = data.qpos[:3], physics.quat_to_mat(data.qpos[3:7])

@@ -301,5 +301,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    from docrl_jax.train.console import run_main
+    from docrl_jax.console import run_main
     run_main(main)

@@ -331,5 +331,5 @@ def _benchmark(args, cfg: dict, argv: Sequence[str] | None) -> int:
 
 
 if __name__ == "__main__":
-    from docrl_jax.train.console import run_main
+    from docrl_jax.console import run_main
     run_main(main)

@@ -380,5 +380,5 @@ def _render(args, cfg: dict) -> int:
 
 
 if __name__ == "__main__":
-    from docrl_jax.train.console import run_main
+    from docrl_jax.console import run_main
     run_main(main)

@@ -67,8 +67,9 @@ def prepare_out_dir(out_dir: str | Path, force: bool = False) -> Path:
     return out_dir
 
 
-def _check_observations(steps: int, size: int, seed: int = 0) -> np.ndarray:
-    """Observations of `size` floats in the ranges the env produces (`huauv.observation_bounds`)."""
+def check_observations(steps: int, size: int, seed: int = 0) -> np.ndarray:
+    """`steps` observations of `size` floats in the ranges the env produces (`huauv.observation_bounds`),
+    shaped (steps, 1, size): what `check_export` feeds every artefact and the JAX policy alike."""
     from docrl_jax.envs.huauv import observation_bounds
     rng = np.random.default_rng(seed)
     obs = rng.uniform(-1.0, 1.0, (steps, 1, size)).astype(np.float32)
@@ -84,7 +85,7 @@ def check_export(out_dir: Path, formats: Sequence[str], step, manifest: dict[str
 
     from docrl_jax.export.runners import open_artefact
     reference = jax.jit(step)
-    obs = _check_observations(steps, manifest["observation"]["size"])
+    obs = check_observations(steps, manifest["observation"]["size"])
     result: dict[str, Any] = {"steps": steps, "batch_sizes": [1, 3], "tolerance": CHECK_TOLERANCE,
                               "max_abs_action_diff": {}}
     for fmt in formats:

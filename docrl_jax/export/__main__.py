@@ -1,5 +1,5 @@
 """`python -m docrl_jax.export`: the export command (docrl_jax.export.cli)."""
 from docrl_jax.export.cli import main
-from docrl_jax.train.console import run_main
+from docrl_jax.console import run_main
 
 run_main(main)

@@ -30,7 +30,7 @@ from docrl_jax import flags
 from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.config import Config, env_kwargs, load_config, packaged_config_names, parse_overrides
 from docrl_jax.errors import ConfigError, RunDirError
-from docrl_jax.train.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
+from docrl_jax.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, make_console
 
 __all__ = ["EXIT_CONFIG", "EXIT_INTERRUPTED", "EXIT_NONFINITE", "EXIT_OK", "build_parser", "main"]
 

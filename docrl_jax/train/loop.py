@@ -13,7 +13,7 @@ running alongside at a checkpoint or a stop, are paused ones.
 Ctrl-C (or SIGTERM, as a cluster's scheduler sends before it kills a job) is answered at once:
 the loop finishes the running chunk (XLA cannot stop it half-way), saves a checkpoint and stops.
 A second one says again what is happening, with the running chunk's time left; a third quits
-without waiting (docrl_jax.train.console.exit_process), keeping the checkpoints already written; none interrupts a
+without waiting (docrl_jax.console.exit_process), keeping the checkpoints already written; none interrupts a
 checkpoint being written.
 """
 
@@ -32,7 +32,7 @@ import jax
 import numpy as np
 
 from docrl_jax.train import metrics
-from docrl_jax.train.console import EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, passing_ctrl_c, waiters
+from docrl_jax.console import EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, passing_ctrl_c, waiters
 from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.metrics import duration
 

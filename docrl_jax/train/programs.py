@@ -129,7 +129,7 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
     # tiered start, needed last, is lowered last.
     # The quick config differs in the actor's sequence loop alone, which only the chunk's updates run: its
     # init, evaluate and eval_starts are the run's own (init already traced for the state's shapes).
-    init, chunk, evaluate, eval_starts = _jitted(quick_config(config) if tiered else config, devices, traced)
+    init, chunk, evaluate, eval_starts = jitted_programs(quick_config(config) if tiered else config, devices, traced)
     with kernel_random(tiered):
         state_shape = jax.eval_shape(init, keys, total, *hp)
         chunk_lowered = chunk.lower(state_shape, *hp)
@@ -155,7 +155,7 @@ def _compile(config: Config, devices: tuple, traced: bool, names: dict, store,
         else:
             done[name] = pool.submit(program_store.compile_lowered, lowered, platform)
     if tiered:
-        full_chunk = _jitted(config, devices, traced)[1]
+        full_chunk = jitted_programs(config, devices, traced)[1]
         full = pool.submit(_compile_and_store, full_chunk.lower(state_shape, *hp), platform, store, names["chunk"])
     pool.shutdown(wait=False)   # the chunk (and a later evaluation) compile on while training starts
     compiled = {name: f.result() for name, f in done.items()}
@@ -268,7 +268,7 @@ def still_compiling_line(progs: Programs) -> str | None:
             "once stored for the next launch (seconds)")
 
 
-def _jitted(config: Config, devices: tuple, traced: bool):
+def jitted_programs(config: Config, devices: tuple, traced: bool):
     """init, chunk, evaluate and eval_starts (None without train.eval_alongside) over the seed axis,
     jitted (not yet compiled) for `devices`."""
     trainer = make_trainer(config)

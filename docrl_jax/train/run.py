@@ -29,7 +29,7 @@ from docrl_jax.envs import make_params
 from docrl_jax.envs.huauv import scene_path
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
-from docrl_jax.train.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, make_console
+from docrl_jax.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, make_console
 from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks, schedule
 from docrl_jax.train.programs import building_note, chunk_building, compile_programs, still_compiling_line
 
@@ -305,7 +305,7 @@ def _run(config: Config, run_dir: Path, resume: bool, console: Console, show_pro
     evals = Cadence(t_cfg.eval_every, t_cfg.eval_every_minutes)
     saves = Cadence(t_cfg.checkpoint_every, t_cfg.checkpoint_every_minutes)
     # The writer and the checkpoints are closed however the loop ends (a third Ctrl-C too: the process
-    # then leaves without Python's shutdown, docrl_jax.train.console.exit_process).
+    # then leaves without Python's shutdown, docrl_jax.console.exit_process).
     with contextlib.closing(mngr), contextlib.closing(writer), Interrupt(console) as interrupt, display.live(), \
             contextlib.closing(videos):
         newest = mngr.latest_step()

@@ -54,7 +54,7 @@ from docrl_jax.algorithms.common import HPARAM_KEYS, HParams, hparams_neutral
 from docrl_jax.config import Config, field_docs, load_config, parse_overrides, to_yaml, validate
 from docrl_jax.errors import ConfigError
 from docrl_jax.train import metrics
-from docrl_jax.train.console import EXIT_INTERRUPTED, EXIT_OK, make_console
+from docrl_jax.console import EXIT_INTERRUPTED, EXIT_OK, make_console
 from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks, schedule
 from docrl_jax.train.programs import building_note, compile_programs, still_compiling_line
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from docrl_jax.arguments import OneLineParser, prog
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
-from docrl_jax.train.console import EXIT_CONFIG, make_console, run_main
+from docrl_jax.console import EXIT_CONFIG, make_console, run_main
 
 
 def build_parser() -> OneLineParser:

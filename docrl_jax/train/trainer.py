@@ -125,7 +125,7 @@ def make_trainer(config: Config) -> Trainer:
                                                                          pool.take(levels, level))
         else:
             env_state = jax.vmap(env.reset)(jax.random.split(k_env, n))
-        example = _buffer_step(env_state.obs[0], jnp.zeros(3), jnp.zeros(()), env_state.obs[0], jnp.zeros((), bool),
+        example = buffer_step(env_state.obs[0], jnp.zeros(3), jnp.zeros(()), env_state.obs[0], jnp.zeros((), bool),
                                jnp.zeros((), bool), jnp.zeros((), bool), init_carry())
         agent_state = agent.init(k_agent, hp)
         evals = None
@@ -177,7 +177,7 @@ def make_trainer(config: Config) -> Trainer:
             reward, done, info = jax.tree.map(train_rows, (env_state.reward, env_state.done, env_state.info))
             if pool and config.levels.route_reward:
                 reward = reward + _route_progress(pool, rs, info["position"], config.levels.route_reward, n)
-            step = _buffer_step(obs, action, reward, info["final_obs"], info["terminated"],
+            step = buffer_step(obs, action, reward, info["final_obs"], info["terminated"],
                                 info["truncated"], rs.start, carry_in)
             buf = buffer.add(rs.buffer, step)
 
@@ -256,7 +256,8 @@ def _route_progress(pool, rs: RunnerState, position, scale: float, n: int):
     return jnp.where(jnp.isfinite(before) & jnp.isfinite(after), scale * (before - after), 0.0)
 
 
-def _buffer_step(obs, action, reward, next_obs, terminated, truncated, start, carry) -> dict:
+def buffer_step(obs, action, reward, next_obs, terminated, truncated, start, carry) -> dict:
+    """One step of experience as the replay buffer stores it (its pytree structure)."""
     return {"obs": obs, "action": action, "reward": reward, "next_obs": next_obs, "terminated": terminated,
             "truncated": truncated, "start": start, "carry": carry}
 

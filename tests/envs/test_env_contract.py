@@ -134,7 +134,7 @@ def test_substep_unroll_is_speed_only(env_fns):
     outs = []
     for unroll, overrides in ((1, {}), (2, {"substep_unroll": 2})):
         env, reset_to, rollout = env_fns(2, **overrides)
-        assert env._unroll == unroll
+        assert env.substep_unroll == unroll
         final, _ = rollout(reset_to(jax.random.PRNGKey(5), start, 0.3, goal), acts)
         outs.append((np.asarray(final.obs), np.asarray(final.info["position"])))
     np.testing.assert_allclose(outs[0][0], outs[1][0], rtol=1e-5, atol=1e-6)

@@ -47,7 +47,7 @@ out["stripped_loads"] = program_store.load(store, "small", devices) is not None
 
 # The trainer's evaluation (the program that failed), at a tiny size.
 config = programs.program_config(easy_config(env__num_envs=4, train__eval_episodes=4))
-init, _, evaluate, _ = programs._jitted(config, devices, False)
+init, _, evaluate, _ = programs.jitted_programs(config, devices, False)
 keys = jax.ShapeDtypeStruct((1, 2), jnp.uint32)
 state = jax.eval_shape(init, keys, jax.ShapeDtypeStruct((), jnp.int32))
 compiled = evaluate.lower(state.agent.actor_average, keys).compile()
@@ -73,7 +73,7 @@ from docrl_jax.config import load_config
 from docrl_jax.train import programs
 config = programs.program_config(load_config("sac_mlp_tanks", ["env.num_envs=4", "levels.capacity=8",
     "levels.refresh=4", "replay.batch_size=8", "train.eval_episodes=2", "replay.buffer_size=64"]))
-init, chunk, evaluate, _ = programs._jitted(config, (jax.devices()[0],), False)
+init, chunk, evaluate, _ = programs.jitted_programs(config, (jax.devices()[0],), False)
 keys, total = jax.ShapeDtypeStruct((1, 2), jnp.uint32), jax.ShapeDtypeStruct((), jnp.int32)
 state = jax.eval_shape(init, keys, total)
 out = {}

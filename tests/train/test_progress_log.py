@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import io
 
-from docrl_jax.train.console import make_console
+from docrl_jax.console import make_console
 from docrl_jax.train.run import _Display
 
 STATS = "train return -12.3  train success 0.05  eval success 0.10  critic 16.4  actor 1.23  alpha 0.0123"

@@ -77,7 +77,7 @@ def test_vmapped_seeds_equal_separate_runs():
     two = easy_config(train__num_seeds=2, train__seed=3)
     # The run's 2-seed init and chunk as compile_programs builds them, without the 2-seed evaluation
     # it would compile too (this test: 32 -> 24 s here), which no test runs.
-    init2, chunk2 = programs._jitted(programs.program_config(two, False), (jax.devices()[0],), False)[:2]
+    init2, chunk2 = programs.jitted_programs(programs.program_config(two, False), (jax.devices()[0],), False)[:2]
     init1, chunk1 = compile_programs(easy_config())[0][:2]
     total = _total(two)
     s2, m2 = chunk2(init2(jnp.stack([jax.random.PRNGKey(3), jax.random.PRNGKey(4)]), total))

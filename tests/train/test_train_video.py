@@ -16,7 +16,7 @@ from docrl_jax.config import ConfigError, load_config, packaged_configs_dir
 from docrl_jax.errors import RenderError
 from docrl_jax.train import cli, tb_video
 from docrl_jax.train import run as train_run
-from docrl_jax.train.console import make_console
+from docrl_jax.console import make_console
 
 
 def _events(run_dir):
