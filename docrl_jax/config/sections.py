@@ -23,8 +23,8 @@ AUTO_STEPS_PER_ENV = {"gpu": 256, "cpu": 1024}
 # GPU a chunk of 100 takes ~1.5 s; on a 2-core CPU 10 already take ~10-30 s, and the progress line,
 # its ETA and Ctrl-C all wait for the chunk to end.
 AUTO_ITERS_PER_CHUNK = {"gpu": 100, "cpu": 10}
-# `agent.critic_dtype: auto`: bf16 activations where they are faster (an H100 update: -35 %); on a
-# CPU XLA emulates bf16 matmuls and a td3_lstm iteration is ~10 % slower with them.
+# `agent.critic_dtype: auto`: bf16 activations where they are faster (a GPU: docs/BENCHMARKS.md, "Why the
+# defaults are what they are"); on a CPU XLA emulates bf16 matmuls, which makes an iteration slower.
 AUTO_CRITIC_DTYPE = {"gpu": "bfloat16", "cpu": "float32"}
 
 
@@ -186,8 +186,8 @@ class TrainConfig:
     eval_alongside: bool = documented(False,
         "Run each periodic evaluation's episodes alongside training, as extra lanes of the chunk's "
         "vectorised env step driven by a frozen copy of the policy, instead of pausing training for them "
-        "(on a GPU a pause per evaluation of latency-bound steps; alongside, the lanes cost 3.6 % of the "
-        "chunks' pace and the default td3_lstm ends 11 % sooner on an H100, docs/BENCHMARKS.md). Same "
+        "(on a GPU a pause per evaluation of latency-bound steps; alongside, the lanes cost a few per cent of "
+        "the chunks' pace and a run ends sooner: docs/BENCHMARKS.md, \"Why the defaults are what they are\"). Same "
         "episodes, same starts, same rows "
         "(docrl_jax/train/evaluation.py); a row is written when its last episode has ended, up to "
         "env.max_episode_steps iterations later, and an evaluation that falls due meanwhile waits for it. "

@@ -46,7 +46,7 @@ class EnvParams:
                                          "(the original Gazebo max_step_size).")
     substep_unroll: int | None = documented(None,
         "Speed only: physics substeps XLA unrolls per loop iteration (same results for any value). None = 2 "
-        "on GPU/TPU (5 steps 1-3 % faster but compiles ~8 s longer on an H100, docs/BENCHMARKS.md) and 1 on "
+        "on GPU/TPU (a faster cold launch: docs/BENCHMARKS.md, \"Why the defaults are what they are\") and 1 on "
         "CPU (faster there).")
     max_episode_steps: int = documented(500, "Steps before truncation (paper: 500).")
     arrival_distance: float = documented(0.5, "Goal reached when the 3-D distance is below this (paper c_d = 0.5 m).")

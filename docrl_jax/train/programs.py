@@ -190,8 +190,8 @@ def quick_config(config: Config) -> Config:
 def kernel_random(on: bool):
     """Programs lowered inside draw their random bits on a GPU through one kernel call per draw instead
     of ~120 inlined integer operations each (JAX's `jax_threefry_gpu_kernel_lowering`): bit for bit the
-    same numbers, a program that compiles faster (the default chunk 22.7 -> 18.0 s alone on an H200) and
-    runs slower (its chunk 7 % slower: XLA no longer fuses the bits into their consumers). No effect on a
+    same numbers, a program that compiles faster and runs slower (XLA no longer fuses the bits into their
+    consumers; measured: docs/BENCHMARKS.md, "Start-up"). No effect on a
     CPU. The setting is restored after, so a user's own programs are lowered as they would be."""
     before = jax.config.jax_threefry_gpu_kernel_lowering
     jax.config.update("jax_threefry_gpu_kernel_lowering", on or before)
