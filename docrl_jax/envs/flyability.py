@@ -28,10 +28,7 @@ loader a few on the CPU).
   * `blockage`: why a trip is not flyable, for a tank file's refusal: the widest way (`widest_field`, the
     most clearance a way keeps) from a cut-off start cell and where it is narrowest.
 
-Cost, `python -m docrl_jax.envs.flyability` on the 2-core development CPU (compiled; median of 5): one
-layout 124 ms, 64 layouts vmapped 6.3 s (~98 ms each). Of one layout's time, the cells' distances to the
-33 solids are ~40 ms, each wavefront ~8 ms (22 and 11 sweeps in generated layout 3), each straight-line field
-~5 ms; a region's arrival cells (`_near`) ~1 ms. Vertically the clearance is conservative (`clearance`):
+What a check costs: `python benchmarks/flyability_cost.py`. Vertically the clearance is conservative (`clearance`):
 with the default water band a floor at -0.8 m (the highest a tank file may have) leaves no free water
 cell (the top one, z = -0.25, is 0.55 m above it, a float's width short), and the water region takes
 the surface layer's cells within the arrival distance of it; at -0.9 m it has one layer of its own.
@@ -377,30 +374,3 @@ def route_path(field, start, max_points: int = 400) -> jax.Array:
 
     _, points = jax.lax.scan(step, entry, None, length=max_points - 2)
     return jnp.concatenate([start[None], centre(entry)[None], points])
-
-
-def _time(batch: int = 64, repeats: int = 5) -> None:
-    """Prints the time of `check` on one generated layout and vmapped over `batch` of them (compiled)."""
-    import time
-
-    from docrl_jax.envs.params import make_params
-    p = make_params(0)
-    many = jax.vmap(lambda i: layouts.generate(layouts.layout_key(i), p))(jnp.arange(batch))
-    one = jax.tree.map(lambda x: x[0], many)
-    for name, fn, arg in (("one layout", jax.jit(lambda l: check(l, p)), one),
-                          (f"{batch} layouts (vmap)", jax.jit(jax.vmap(lambda l: check(l, p))), many)):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(arg))
-        compiled = time.perf_counter() - t0
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            route = jax.block_until_ready(fn(arg))
-            times.append(time.perf_counter() - t0)
-        print(f"{name}: compile+first {compiled:.2f} s, then median {np.median(times) * 1e3:.1f} ms "
-              f"(min {min(times) * 1e3:.1f}) on {jax.devices()[0].device_kind}; "
-              f"flyable A-W {np.mean(np.asarray(route.flyable)[..., 0]):.2f}")
-
-
-if __name__ == "__main__":
-    _time()
