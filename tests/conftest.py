@@ -109,7 +109,7 @@ HEAVIEST_FIRST = (
     ("tests/envs/test_procedural.py",),
     ("tests/envs/test_randomization.py",),
     ("tests/envs/test_structures.py",),
-    ("tests/test_learner_recipe.py",),
+    ("tests/algorithms/test_learner_recipe.py",),
     ("tests/train/test_programs.py",),
     ("tests/envs/test_tanks.py",),
     ("tests/evaluate/test_tank_trials.py",),

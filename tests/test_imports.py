@@ -140,3 +140,15 @@ def test_the_train_command_reads_its_config_before_the_heavy_imports():
             "print(sorted(m for m in ('mujoco.mjx', 'orbax.checkpoint', 'optax') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_tests_mirror_the_package_and_no_test_imports_another():
+    import re
+    root = Path(__file__).resolve().parent
+    package = root.parent / "docrl_jax"
+    folders = {p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))} - {"data"}
+    # every folder of tests/ is a subpackage's, or the benchmark scripts'
+    assert folders <= {p.name for p in package.iterdir() if (p / "__init__.py").is_file()} | {"benchmarks"}, folders
+    for path in root.rglob("*.py"):
+        text = path.read_text()
+        assert not re.search(r"^\s*(from (tests\.)?test_\w+ import|import (tests\.)?test_\w+)", text, re.M), path

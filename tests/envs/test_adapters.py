@@ -33,12 +33,9 @@ from docrl_jax.envs.brax_env import BraxHUAUV, make_randomization_fn, randomizat
 from docrl_jax.envs.physics import Plant
 from docrl_jax.envs.gym_env import ENV_ID, HUAUVGymEnv, HUAUVVectorEnv
 
-LIMIT = 4                 # the adapters' step limit in these tests
+from _adapter_settings import FAST_COMPILE, GYM_KW, LIMIT, NUM_ENVS
+
 STEPS = 6                 # steps run: 3 inside the episode, the time-out, 2 into the next episode
-NUM_ENVS = 2
-# XLA's cheap CPU optimisation level: compiling, not running, is what these short tests spend.
-FAST_COMPILE = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
-GYM_KW = {"scenario": 1, "wind": False, "max_episode_steps": LIMIT, "compiler_options": FAST_COMPILE}
 TIMEOUT_REWARD = -10.0
 WORKER = Path(__file__).with_name("_brax_worker.py")
 

@@ -81,7 +81,7 @@ def test_gym_render_mode_rgb_array():
 
     from docrl_jax.envs.gym_env import ENV_ID, HUAUVVectorEnv
     # The adapter tests' settings: their compiled programs are reused.
-    from test_adapters import GYM_KW, NUM_ENVS
+    from _adapter_settings import GYM_KW, NUM_ENVS
     env = gymnasium.make(ENV_ID, render_mode="rgb_array", render_width=96, render_height=64, **GYM_KW)
     try:
         assert env.metadata["render_fps"] == 5 and "rgb_array" in env.metadata["render_modes"]
@@ -111,7 +111,7 @@ def test_gym_record_video(tmp_path):
     from gymnasium.wrappers import RecordVideo
 
     from docrl_jax.envs.gym_env import ENV_ID
-    from test_adapters import GYM_KW
+    from _adapter_settings import GYM_KW
     env = RecordVideo(gymnasium.make(ENV_ID, render_mode="rgb_array", render_width=64, render_height=48, **GYM_KW),
                       str(tmp_path), episode_trigger=lambda e: True)
     env.reset(seed=0)

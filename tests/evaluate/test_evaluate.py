@@ -18,9 +18,7 @@ from docrl_jax.evaluate import cli, curves, paper_results, plotting, rollout, ru
 from docrl_jax.baselines.scripted import straight_line
 from docrl_jax.errors import RunDirError
 
-MAX_STEPS = 200
-LOW_FLOOR = (-3.0, 4.8)  # z bounds below the floor (top -1.3), so a dive ends on the floor
-N = 6
+from _evaluator_world import LOW_FLOOR, MAX_STEPS, N
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,6 @@
 """--guide: a learned policy steered down each trial's route (docrl_jax.baselines.route.guided) in evaluate,
-robustness and render. What the guided rollout flies is tested in tests/test_route_follower.py (the rollout
-plans each trial itself) and tests/test_guidance.py (the observation it sees); here, how the commands load and
+robustness and render. What the guided rollout flies is tested in tests/baselines/test_route_follower.py (the rollout
+plans each trial itself) and tests/envs/test_guidance.py (the observation it sees); here, how the commands load and
 label it, and the one line that refuses to guide the BBA, which reads its goal from the env."""
 
 import subprocess

@@ -20,7 +20,7 @@ from docrl_jax.baselines.scripted import straight_line
 from docrl_jax.envs.rendering import Renderer
 from docrl_jax.evaluate import video
 
-from test_evaluate import LOW_FLOOR, MAX_STEPS, N   # the evaluator tests' env: their compiled rollout
+from _evaluator_world import LOW_FLOOR, MAX_STEPS, N   # the evaluator tests' env: their compiled rollout
 
 TRAINED = str(Path(__file__).resolve().parents[1] / "data" / "trained" / "td3_lstm")
 W, H = 128, 64   # both views, 64 x 64 each

@@ -11,12 +11,16 @@ from __future__ import annotations
 
 import copy
 import functools
+import io
+import pickle
 import tempfile
 import threading
 from concurrent import futures
 from pathlib import Path
 
+import jax
 import pytest
+from jax.experimental import serialize_executable
 
 from docrl_jax.config import config_from_dict
 
@@ -86,3 +90,15 @@ def result_of(future: futures.Future, what: str):
     if not futures.wait([future], WAIT_S).done:
         pytest.fail(f"timed out after {WAIT_S} s waiting for {what}")
     return future.result()
+
+
+def rewrite_entry(path: Path, change) -> None:
+    """Writes the entry at `path` again with its constants replaced by `change(constants)`."""
+    fmt, payload, trees = pickle.loads(path.read_bytes())
+    device = jax.devices()[0]
+    unloaded, args_info_flat, no_kwargs, consts = serialize_executable._JaxPjrtUnpickler(
+        io.BytesIO(payload), device.client, [device]).load()
+    with io.BytesIO() as f:
+        serialize_executable._JaxPjrtPickler(f).dump((unloaded, args_info_flat, no_kwargs, change(consts)))
+        payload = f.getvalue()
+    path.write_bytes(pickle.dumps((fmt, payload, trees)))

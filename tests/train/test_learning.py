@@ -2,7 +2,7 @@
 goals 1-2 m away, progress shaping, no wind, 100-step episodes) must beat the untrained policy.
 
 Baseline = the same run with learning disabled. With learning rates 0 the actor never changes
-(tests/test_algorithms.py::test_learning_rate_zero_freezes_the_networks), so that run's final
+(tests/algorithms/test_algorithms.py::test_learning_rate_zero_freezes_the_networks), so that run's final
 evaluation is the initial actor evaluated on the final evaluation's episodes: computed here
 directly, which needs no second training run and compares on identical episodes.
 

@@ -7,7 +7,6 @@ called with M")."""
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import pickle
@@ -23,6 +22,8 @@ from jax.experimental import serialize_executable
 
 from docrl_jax.train import program_store
 
+from _trainer_common import rewrite_entry
+
 # Run under hoisting (a fresh process: JAX reads the setting when it is imported). Prints one JSON line.
 HOISTED = r"""
 import json, sys
@@ -30,8 +31,7 @@ from pathlib import Path
 import jax, jax.numpy as jnp, numpy as np
 from docrl_jax.train import program_store, programs
 sys.path.insert(0, sys.argv[2])
-from _trainer_common import easy_config
-from test_program_constants import rewrite_entry
+from _trainer_common import easy_config, rewrite_entry
 
 store, devices, out = Path(sys.argv[1]), (jax.devices()[0],), {}
 table, ramp = np.arange(100.0, dtype=np.float32), jnp.linspace(0.0, 1.0, 50)
@@ -82,18 +82,6 @@ for name, f, args in [("init", init, (keys, total)), ("chunk", chunk, (state,)),
     out[name] = [len(f.trace(*args).jaxpr.jaxpr.invars), len(jax.tree.leaves(args))]
 print(json.dumps(out))
 """
-
-
-def rewrite_entry(path: Path, change) -> None:
-    """Writes the entry at `path` again with its constants replaced by `change(constants)`."""
-    fmt, payload, trees = pickle.loads(path.read_bytes())
-    device = jax.devices()[0]
-    unloaded, args_info_flat, no_kwargs, consts = serialize_executable._JaxPjrtUnpickler(
-        io.BytesIO(payload), device.client, [device]).load()
-    with io.BytesIO() as f:
-        serialize_executable._JaxPjrtPickler(f).dump((unloaded, args_info_flat, no_kwargs, change(consts)))
-        payload = f.getvalue()
-    path.write_bytes(pickle.dumps((fmt, payload, trees)))
 
 
 def test_hoisted_constants_are_stored_and_loaded_with_the_program(tmp_path):

@@ -4,6 +4,8 @@ wall's end and arrives; given a straight-line field instead (the tank as if empt
 evaluator's rollout, planning each trial from its initial state, flies the very same flight. In an empty
 tank file whose water goal lies 0.3 m above the floor (the paper's; below every free cell) it arrives too."""
 
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -16,19 +18,9 @@ from docrl_jax.envs import guidance, tanks
 from docrl_jax.evaluate import rollout
 
 MAX_STEPS = 250
-WALL_END_Y = -1.5   # the wall covers y < -1.5 at x = 0; start and goal lie at y = -3 on either side
+WALL_END_Y = -1.5   # the wall of tests/data/tanks/wall_and_opening.yaml covers y < -1.5 at x = 0
 
-TANK = f"""
-name: wall_and_opening
-floor_top: -1.5
-air: [-1.5, -3.0, 1.0]
-water: [1.5, -3.0, -0.8]
-solids:
-  - type: box
-    name: wall
-    center: [0.0, {(-5.1 + WALL_END_Y) / 2}, 1.95]
-    half_extents: [0.15, {(WALL_END_Y + 5.1) / 2}, 3.45]
-"""
+TANK = (Path(__file__).resolve().parents[1] / "data" / "tanks" / "wall_and_opening.yaml").read_text()
 
 PAPER_GOAL_TANK = """
 name: paper_goal

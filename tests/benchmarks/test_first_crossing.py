@@ -4,7 +4,7 @@ evaluation schedule's target row lands, on hand-made curves worked out by hand."
 import os
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 import first_crossing as fc  # noqa: E402
 

@@ -99,7 +99,7 @@ def test_time_chunks_warms_up_once_then_times_each_call():
 def test_no_benchmark_script_imports_a_sibling_or_a_package_private():
     import re
     from pathlib import Path
-    root = Path(__file__).resolve().parent.parent / "benchmarks"
+    root = Path(__file__).resolve().parents[2] / "benchmarks"
     scripts = {p.stem for p in root.glob("*.py")}
     for path in root.glob("*.py"):
         text = path.read_text()

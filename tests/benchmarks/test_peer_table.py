@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 RESULTS = os.path.join(ROOT, "benchmarks", "results", "h200x2", "peers")
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 peer_table = pytest.importorskip("peer_table")

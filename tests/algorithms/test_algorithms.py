@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import _agent_references as ref   # the hand computations of tests/algorithms/
 
 from docrl_jax.algorithms import make_agent, policy_freq
 from docrl_jax.algorithms import sac, td3
@@ -40,18 +41,6 @@ def _np(tree):
     return jax.tree.map(np.asarray, tree)
 
 
-def _mlp(p, x, layers):
-    for name in layers[:-1]:
-        x = np.maximum(x @ p[name]["kernel"] + p[name]["bias"], 0.0)
-    return x @ p[layers[-1]]["kernel"] + p[layers[-1]]["bias"]
-
-
-def _q(p, obs, act, i):
-    """Head i of the vmapped critic ensemble (parameters stacked on axis 0)."""
-    head = jax.tree.map(lambda x: x[i], p["params"]["q"])
-    return _mlp(head, np.concatenate([obs, act], -1), ["dense_0", "out"])[..., 0]
-
-
 def _perturbed(state):
     """Targets different from the online nets, so using the wrong one shows."""
     return state.replace(actor_target=jax.tree.map(lambda x: 1.5 * x, state.actor_target),
@@ -71,32 +60,17 @@ def test_td3_target_with_clipped_smoothing_and_critic_loss_by_hand():
 
     p, b, n = _np(state), _np(batch), np.asarray(noise)[0]
     s, a, r, s2, d = b["obs"][:, 0], b["action"][:, 0], b["reward"][:, 0], b["next_obs"][:, 0], b["terminated"][:, 0]
-    a2 = np.tanh(_mlp({**p.actor_target["params"], "out": p.actor_target["params"]["head"]["out"]}, s2,
+    a2 = np.tanh(ref.mlp({**p.actor_target["params"], "out": p.actor_target["params"]["head"]["out"]}, s2,
                       ["dense_0", "out"]))
     a2 = np.clip(a2 + np.clip(0.4 * n, -0.5, 0.5), -1, 1)
-    y = r + 0.99 * (1 - d) * np.minimum(_q(p.critic_target, s2, a2, 0), _q(p.critic_target, s2, a2, 1))
-    expected = sum(np.mean((_q(p.critic, s, a, i) - y) ** 2) for i in range(2))
+    y = r + 0.99 * (1 - d) * np.minimum(ref.q(p.critic_target, s2, a2, 0), ref.q(p.critic_target, s2, a2, 1))
+    expected = sum(np.mean((ref.q(p.critic, s, a, i) - y) ** 2) for i in range(2))
     np.testing.assert_allclose(float(info["target"]), y.mean(), rtol=1e-5)
     np.testing.assert_allclose(float(loss), expected, rtol=1e-5)
     # The actor loss is -Q1 of the online actor's action under the online critic.
-    a_pi = np.tanh(_mlp({**p.actor["params"], "out": p.actor["params"]["head"]["out"]}, s, ["dense_0", "out"]))
+    a_pi = np.tanh(ref.mlp({**p.actor["params"], "out": p.actor["params"]["head"]["out"]}, s, ["dense_0", "out"]))
     got = td3.actor_loss(state.actor, agent.actor, critic, state.critic, split_batch(batch, 0), memory=False)
-    np.testing.assert_allclose(float(got), -np.mean(_q(p.critic, s, a_pi, 0)), rtol=1e-5)
-
-
-def _gauss_head(p, x):
-    pp = p["params"]
-    h = np.maximum(x @ pp["dense_0"]["kernel"] + pp["dense_0"]["bias"], 0.0)
-    mean = h @ pp["head"]["mean"]["kernel"] + pp["head"]["mean"]["bias"]
-    log_std = np.clip(h @ pp["head"]["log_std"]["kernel"] + pp["head"]["log_std"]["bias"], -20.0, 2.0)
-    return mean, log_std
-
-
-def _tanh_gauss(mean, log_std, eps):
-    u = mean + np.exp(log_std) * eps
-    a = np.tanh(u)
-    logp = np.sum(-0.5 * eps ** 2 - log_std - 0.5 * math.log(2 * math.pi) - np.log(1 - a ** 2 + 1e-6), -1)
-    return a, logp
+    np.testing.assert_allclose(float(got), -np.mean(ref.q(p.critic, s, a_pi, 0)), rtol=1e-5)
 
 
 def test_sac_losses_by_hand():
@@ -114,19 +88,19 @@ def test_sac_losses_by_hand():
     loss, info = sac.critic_loss(state.critic, critic, agent.actor, state, seq, eps_next, c.agent, memory=False)
     p, b = _np(state), _np(batch)
     s, a, r, s2, d = b["obs"][:, 0], b["action"][:, 0], b["reward"][:, 0], b["next_obs"][:, 0], b["terminated"][:, 0]
-    mean2, log_std2 = _gauss_head(p.actor, s2)
-    a2, logp2 = _tanh_gauss(mean2, log_std2, np.asarray(eps_next)[0])
-    qmin2 = np.minimum(_q(p.critic_target, s2, a2, 0), _q(p.critic_target, s2, a2, 1))
+    mean2, log_std2 = ref.gauss_head(p.actor, s2)
+    a2, logp2 = ref.tanh_gauss(mean2, log_std2, np.asarray(eps_next)[0])
+    qmin2 = np.minimum(ref.q(p.critic_target, s2, a2, 0), ref.q(p.critic_target, s2, a2, 1))
     y = r + 0.99 * (1 - d) * (qmin2 - 0.3 * logp2)
     np.testing.assert_allclose(float(info["target"]), y.mean(), rtol=1e-4)
-    np.testing.assert_allclose(float(loss), sum(np.mean((_q(p.critic, s, a, i) - y) ** 2) for i in range(2)),
+    np.testing.assert_allclose(float(loss), sum(np.mean((ref.q(p.critic, s, a, i) - y) ** 2) for i in range(2)),
                                rtol=1e-4)
 
     a_loss, logp = sac.actor_loss(state.actor, agent.actor, critic, state.critic, state.log_alpha, seq, eps_pi,
                                   c.agent, memory=False)
-    mean, log_std = _gauss_head(p.actor, s)
-    a_pi, logp_pi = _tanh_gauss(mean, log_std, np.asarray(eps_pi)[0])
-    qmin = np.minimum(_q(p.critic, s, a_pi, 0), _q(p.critic, s, a_pi, 1))
+    mean, log_std = ref.gauss_head(p.actor, s)
+    a_pi, logp_pi = ref.tanh_gauss(mean, log_std, np.asarray(eps_pi)[0])
+    qmin = np.minimum(ref.q(p.critic, s, a_pi, 0), ref.q(p.critic, s, a_pi, 1))
     np.testing.assert_allclose(float(a_loss), np.mean(0.3 * logp_pi - qmin), rtol=1e-4)
     np.testing.assert_allclose(np.asarray(logp)[0], logp_pi, rtol=1e-4)
     al = sac.alpha_loss(state.log_alpha, logp, -3.0, seq.mask)

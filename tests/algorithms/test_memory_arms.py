@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from test_algorithms import _gauss_head, _q, _tanh_gauss   # the hand references of the agents' tests
+import _agent_references as ref   # the hand computations of tests/algorithms/
 
 from docrl_jax.algorithms import make_agent, sac
 from docrl_jax.algorithms.common import split_batch
@@ -44,7 +44,7 @@ def test_stacked_actor_reads_the_last_frames_and_starts_each_episode_from_zeros(
         for b in range(B):
             first = max(k for k in range(t + 1) if reset[k, b])
             frames = [obs[k, b] if k >= first else np.zeros(OBS) for k in range(t - FRAMES + 1, t + 1)]
-            mean, _ = _gauss_head(jax.tree.map(np.asarray, params), np.concatenate(frames))
+            mean, _ = ref.gauss_head(jax.tree.map(np.asarray, params), np.concatenate(frames))
             np.testing.assert_allclose(np.asarray(means)[t, b], mean, rtol=1e-5, atol=1e-6)
 
 
@@ -70,13 +70,13 @@ def test_sac_critics_that_see_the_carry_by_hand():
     past = b["carry"][0][:, 0]
     carry = np.concatenate([past, s], -1)[:, OBS:]          # the frames after reading s
     next_carry = np.concatenate([carry, s2], -1)[:, OBS:]   # ... and after reading s2
-    a2, logp2 = _tanh_gauss(*_gauss_head(p.actor, np.concatenate([carry, s2], -1)), np.asarray(eps)[0])
+    a2, logp2 = ref.tanh_gauss(*ref.gauss_head(p.actor, np.concatenate([carry, s2], -1)), np.asarray(eps)[0])
     seen2 = np.concatenate([s2, next_carry], -1)
-    y = r + 0.99 * (1 - d) * (np.minimum(_q(p.critic_target, seen2, a2, 0), _q(p.critic_target, seen2, a2, 1))
+    y = r + 0.99 * (1 - d) * (np.minimum(ref.q(p.critic_target, seen2, a2, 0), ref.q(p.critic_target, seen2, a2, 1))
                               - 0.3 * logp2)
     seen = np.concatenate([s, carry], -1)
     np.testing.assert_allclose(float(info["target"]), y.mean(), rtol=1e-4)
-    np.testing.assert_allclose(float(loss), sum(np.mean((_q(p.critic, seen, a, i) - y) ** 2) for i in range(2)),
+    np.testing.assert_allclose(float(loss), sum(np.mean((ref.q(p.critic, seen, a, i) - y) ** 2) for i in range(2)),
                                rtol=1e-4)
     # The critics' input is obs + carry wide; without critic_carry it is the obs alone.
     assert state.critic["params"]["q"]["dense_0"]["kernel"].shape[1] == OBS + (FRAMES - 1) * OBS + 3

@@ -6,7 +6,7 @@ import sys
 
 from docrl_jax.config import differences, load_config
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 import every_seed_table as est  # noqa: E402
 

@@ -1,7 +1,10 @@
 """Route guidance (docrl_jax/envs/guidance.py): the observation's goal floats point at the route's aim.
 Checked against the env's own observation (guiding at the real goal changes nothing) and in a hand-made
-tank whose straight line from start to goal runs into a wall (tests/test_route_follower.py's): the aim is
-not the goal, lies down the route, is in sight, and the guided observation's bearing turns towards it."""
+tank whose straight line from start to goal runs into a wall (tests/data/tanks/wall_and_opening.yaml, which
+tests/baselines/test_route_follower.py flies): the aim is not the goal, lies down the route, is in sight, and
+the guided observation's bearing turns towards it."""
+
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -10,13 +13,11 @@ import pytest
 
 from docrl_jax.envs import flyability, guidance, huauv, tanks
 from docrl_jax.evaluate import rollout
-from tests.test_route_follower import TANK
 
 
 @pytest.fixture(scope="module")
-def trip(tmp_path_factory):
-    path = tmp_path_factory.mktemp("tank") / "wall.yaml"
-    path.write_text(TANK)
+def trip():
+    path = Path(__file__).resolve().parents[1] / "data" / "tanks" / "wall_and_opening.yaml"
     env = rollout.make_eval_env(0, 100, start_water_fraction=0.0, goal_water_fraction=1.0)
     layout = jax.tree.map(lambda x: x[None], tanks.load(path, env.params))
     state = jax.tree.map(lambda x: x[0], rollout.reset_states(env, jax.random.PRNGKey(3)[None], layout))
