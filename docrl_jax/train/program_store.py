@@ -37,7 +37,6 @@ import contextlib
 import dataclasses
 import functools
 import hashlib
-import io
 import os
 import pickle
 import stat
@@ -49,10 +48,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import jax
-import numpy as np
-from jax.experimental import serialize_executable
 
 from docrl_jax import sharding
+from docrl_jax.train import jax_internals
 from docrl_jax.resources import resource_dir, versions
 
 if TYPE_CHECKING:
@@ -254,10 +252,9 @@ def prefetch(config: Config) -> None:
 def _read(path: Path, devices) -> tuple:
     """The entry at `path` with its executable loaded onto `devices` (the seconds-long part, which
     XLA runs without Python's lock): ((unloaded executable, flat argument info, no_kwargs, hoisted
-    constants), the pickled trees). This is the first half of `serialize_executable.deserialize_and_load`,
-    split off because its second half needs the trees; the store's key holds JAX's version, and
-    anything that fails here is a miss."""
-    if devices[0].platform == "cpu" and not _cpu_kernels_ready():
+    constants), the pickled trees): `jax_internals.unpack`, split from the rest of the load because
+    that needs the trees; the store's key holds JAX's version, and anything that fails here is a miss."""
+    if devices[0].platform == "cpu" and not jax_internals.cpu_kernels_ready():
         raise LookupError("no loading on this CPU")
     with open(path, "rb") as f:
         if _refused(path, os.fstat(f.fileno())):   # the file opened, whatever is at `path` later
@@ -265,8 +262,7 @@ def _read(path: Path, devices) -> tuple:
         fmt, payload, trees = pickle.load(f)
     if fmt != FORMAT:
         raise LookupError(f"entry format {fmt}")
-    unpickler = serialize_executable._JaxPjrtUnpickler(io.BytesIO(payload), devices[0].client, list(devices))
-    return unpickler.load(), trees
+    return jax_internals.unpack(payload, devices), trees
 
 
 def _take_prefetched(path: Path):
@@ -282,61 +278,13 @@ def load(store: Path, name: str, devices) -> jax.stages.Compiled | None:
     try:
         early = _take_prefetched(path)
         entry = early.result() if early is not None else _read(path, devices)
-        (unloaded, args_info_flat, no_kwargs, consts), trees = entry
-        in_tree, out_tree = pickle.loads(trees)
-        # The second half of deserialize_and_load, on the devices the read loaded it onto, with the
-        # constants it takes as hidden arguments placed as it expects them.
-        executable = unloaded.load()
-        _check_inputs(executable, consts, len(args_info_flat))
-        program = jax.stages.Compiled(executable, executable.shard_const_args(consts) if consts else [],
-                                      in_tree.unflatten(args_info_flat), out_tree, no_kwargs=no_kwargs)
+        parts, trees = entry
+        program = jax_internals.callable_program(parts, *pickle.loads(trees))
         with contextlib.suppress(OSError):
             os.utime(path)  # recently used: kept by the pruning in `save`
         return program
     except Exception:  # noqa: BLE001  a missing, damaged or foreign entry is a miss; the caller compiles and rewrites it
         return None
-
-
-def _check_inputs(executable, consts: list, num_args: int) -> None:
-    """Raises LookupError unless `executable` takes `consts` (shapes and dtypes) and then `num_args`
-    arguments: a program called with other inputs fails only at its first call ("compiled for N
-    inputs but called with M"), after the launch has committed to it."""
-    expected = getattr(getattr(executable, "_all_args_info", None), "in_avals", None)
-    if expected is None or len(expected) != len(consts) + num_args:
-        raise LookupError("the executable's inputs are not the entry's")
-    if any((a.shape, a.dtype) != (c.shape, c.dtype) for a, c in zip(expected, consts)):
-        raise LookupError("the entry's constants are not the executable's")
-
-
-def _serialize(compiled: jax.stages.Compiled) -> tuple[bytes, object, object]:
-    """`serialize_executable.serialize` that also keeps the program's hoisted constants (as NumPy
-    arrays), which it refuses: (payload, in_tree, out_tree). Raises if the program cannot be kept
-    (a closed-over mutable array, a constant NumPy cannot hold such as a PRNG key array)."""
-    unloaded = getattr(compiled._executable, "_unloaded_executable", None)
-    if unloaded is None:
-        raise ValueError("this executable cannot be serialised")
-    if getattr(unloaded, "mut", None) and unloaded.mut.in_mut:
-        raise ValueError("a closed-over mutable array")
-    consts = [np.asarray(c) for c in compiled._params.const_args]
-    if any(c.dtype == object for c in consts):
-        raise ValueError("a constant NumPy cannot hold")
-    args_info_flat, in_tree = jax.tree.flatten(compiled.args_info)
-    with io.BytesIO() as f:
-        serialize_executable._JaxPjrtPickler(f).dump((unloaded, args_info_flat, compiled._no_kwargs, consts))
-        return f.getvalue(), in_tree, compiled.out_tree
-
-
-@functools.lru_cache(maxsize=1)
-def _cpu_kernels_ready() -> bool:
-    """Registers the CPU's LAPACK kernels, which JAX otherwise registers while lowering a linear
-    algebra op: a loaded program that calls one (MJX's solves) would jump to an unset kernel. False
-    (no loading on the CPU) if this JAX has no such hook."""
-    try:
-        from jax._src.lax import linalg
-        linalg.initialize_lapack()
-        return True
-    except (ImportError, AttributeError):
-        return False
 
 
 _thread = threading.local()
@@ -369,7 +317,7 @@ def save(store: Path, name: str, compiled: jax.stages.Compiled) -> bool:
     store only saves time, so its failures never stop a run."""
     tmp = None
     try:
-        payload, in_tree, out_tree = _serialize(compiled)
+        payload, in_tree, out_tree = jax_internals.dumps(compiled)
         store.mkdir(mode=0o700, parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=store, prefix=f".{name}.", suffix=".tmp")
         with os.fdopen(fd, "wb") as f:

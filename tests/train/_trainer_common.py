@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import copy
 import functools
-import io
 import pickle
 import tempfile
 import threading
@@ -20,9 +19,9 @@ from pathlib import Path
 
 import jax
 import pytest
-from jax.experimental import serialize_executable
 
 from docrl_jax.config import config_from_dict
+from docrl_jax.train import jax_internals
 
 EASY = {
     "name": "easy",
@@ -95,10 +94,5 @@ def result_of(future: futures.Future, what: str):
 def rewrite_entry(path: Path, change) -> None:
     """Writes the entry at `path` again with its constants replaced by `change(constants)`."""
     fmt, payload, trees = pickle.loads(path.read_bytes())
-    device = jax.devices()[0]
-    unloaded, args_info_flat, no_kwargs, consts = serialize_executable._JaxPjrtUnpickler(
-        io.BytesIO(payload), device.client, [device]).load()
-    with io.BytesIO() as f:
-        serialize_executable._JaxPjrtPickler(f).dump((unloaded, args_info_flat, no_kwargs, change(consts)))
-        payload = f.getvalue()
-    path.write_bytes(pickle.dumps((fmt, payload, trees)))
+    *parts, consts = jax_internals.unpack(payload, jax.devices()[:1])
+    path.write_bytes(pickle.dumps((fmt, jax_internals.pack((*parts, change(consts))), trees)))
