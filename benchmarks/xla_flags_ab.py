@@ -34,7 +34,7 @@ def child(config_name: str, sets: list[str], warmup: int, chunks: int, evals: in
     import jax
 
     from docrl_jax.config import load_config
-    from docrl_jax.train.loop import schedule
+    from docrl_jax.train.chunks import schedule
     from docrl_jax.train.evaluation import eval_keys
     from docrl_jax.train.program_store import enable_compile_cache
     from docrl_jax.train.programs import compile_programs

@@ -20,18 +20,18 @@ checkpoint being written.
 from __future__ import annotations
 
 import contextlib
-import math
 import signal
 import threading
 import time
 from concurrent import futures
 from dataclasses import dataclass
-from typing import Any, Callable, NamedTuple
+from typing import Any, Callable
 
 import jax
 import numpy as np
 
 from docrl_jax.train import metrics
+from docrl_jax.train.chunks import Schedule
 from docrl_jax.console import EXIT_INTERRUPTED, EXIT_NONFINITE, EXIT_OK, passing_ctrl_c, waiters
 from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.metrics import duration
@@ -291,22 +291,6 @@ class Evaluations:
             return self.begin(state, 0)[0]
         self.now(state, 0)
         return state
-
-
-class Schedule(NamedTuple):
-    """A run's chunks, from its config alone (no env, no tracing): what the loop counts."""
-    iters_per_chunk: int     # iterations (one env step of every env, then the updates) per chunk
-    steps_per_chunk: int     # env steps per chunk, all envs together
-    num_chunks: int
-    total_env_steps: int     # train.total_env_steps rounded up to whole chunks
-
-
-def schedule(config) -> Schedule:
-    """A chunk is `train.log_every` env steps rounded up to whole iterations of `env.num_envs`."""
-    n, t = config.env.num_envs, config.train
-    iters = max(1, math.ceil(t.log_every / n))
-    chunks = max(1, math.ceil(t.total_env_steps / (iters * n)))
-    return Schedule(iters, iters * n, chunks, chunks * iters * n)
 
 
 def run_chunks(plan: Schedule, chunk: Callable, state, done_chunks: int, hooks: Hooks, evaluations: Evaluations,

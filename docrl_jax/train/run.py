@@ -30,7 +30,8 @@ from docrl_jax.envs.huauv import scene_path
 from docrl_jax.errors import ConfigError, RunDirError, os_error_line
 from docrl_jax.train import best_policy, metrics, tb_video
 from docrl_jax.console import EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK, make_console
-from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks, schedule
+from docrl_jax.train.chunks import schedule
+from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks
 from docrl_jax.train.programs import building_note, chunk_building, compile_programs, still_compiling_line
 
 __all__ = ["check_resume_changes", "check_run_dir", "run"]

@@ -55,7 +55,8 @@ from docrl_jax.config import Config, field_docs, load_config, parse_overrides, t
 from docrl_jax.errors import ConfigError
 from docrl_jax.train import metrics
 from docrl_jax.console import EXIT_INTERRUPTED, EXIT_OK, make_console
-from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks, schedule
+from docrl_jax.train.chunks import schedule
+from docrl_jax.train.loop import Cadence, Evaluations, Hooks, Interrupt, run_chunks
 from docrl_jax.train.programs import building_note, compile_programs, still_compiling_line
 from docrl_jax.train.sweep_report import TABLE_MD, columns, write_summary
 

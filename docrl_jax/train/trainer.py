@@ -39,7 +39,7 @@ from docrl_jax.envs.curriculum import make_curriculum
 from docrl_jax.networks import expand_flag
 from docrl_jax.replay import BufferState, make_sequence_buffer
 from docrl_jax.train.evaluation import make_evaluation
-from docrl_jax.train.loop import schedule
+from docrl_jax.train.chunks import schedule
 
 
 @struct.dataclass
