@@ -5,8 +5,8 @@ same trials of a tank set (docrl_jax.evaluate.tank_trials), compiled first, then
     python benchmarks/own_map_cost.py [--policy sac_mlp_tanks] [--trials 1000] [--tank gallery] [--repeats 3]
         [--modes mapless,tank,sensors] [--belief SWEEPS=1 ...] [--out cost.json]
 
-`--belief NAME=VALUE` sets one of docrl_jax.envs.belief's settings (SWEEPS, GAP_REACH, UNKNOWN_GAP, ...) for the
-run: what a setting costs.
+`--belief NAME=VALUE` sets one of docrl_jax.envs.belief's settings (REPLAN, SWEEPS, GAP_REACH, UNKNOWN_GAP, ...)
+for the run: what a setting costs (REPLAN=1 plans every step).
 
 A trial runs its whole `--max-steps` scan (the rollout records every step), so env steps = trials x steps.
 Prints one line per mode (median over repeats) and the ratio to mapless; --out writes them as JSON.

@@ -11,8 +11,9 @@ params, one plan per trial: run it with a rollout that maps params over trials (
 `guided` steers a learned policy at the same aim instead (its goal floats point there).
 
 Without the tank's map, `own_map_follower` and `mapped` steer at the aim of the route planned on what the
-vehicle's own beams have shown it (docrl_jax/envs/belief.py): their carry holds the belief and the route field,
-updated every step from `info` (pose, attitude, ranges); nothing of the tank is known beforehand.
+vehicle's own beams have shown it (docrl_jax/envs/belief.py): their carry holds the belief, updated every step
+from `info` (pose, attitude, ranges), and the last plan, made every `belief.REPLAN` steps of `info["step"]`;
+nothing of the tank is known beforehand.
 """
 
 from __future__ import annotations

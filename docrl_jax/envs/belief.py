@@ -19,10 +19,17 @@ does from the tank's own solids: `gap` is every cell's distance to the nearest O
 lies below the episode's top bound (an UNKNOWN cell keeps `UNKNOWN_GAP`), UNKNOWN cells are passable at
 `UNKNOWN_COST` extra per metre (the
 free-space assumption of D* Lite: plan on what is known, assume the unknown is free), and `field` is the
-route cost to the goal's arrival cells. The field is warm-started: each step runs `SWEEPS` relaxation sweeps
-from the last step's field (the first from the straight-line distance to the goal, a lower bound), so a
-newly seen wall raises the cells it cuts off within a few steps and the route bends round it, at a fixed
-cost per step.
+route cost to the goal's arrival cells. The field is warm-started: each plan runs `SWEEPS` relaxation sweeps
+from the last plan's field (the first from the straight-line distance to the goal, a lower bound), so a
+newly seen wall raises the cells it cuts off within a few plans and the route bends round it, at a fixed
+cost per plan.
+
+`sense_and_plan` updates the belief every step and plans every `REPLAN` steps of the episode (`info["step"]`,
+the env's step count; an episode's first step, 0, plans): between plans the aim reads the last plan, which the
+carry holds. The rollout (docrl_jax/evaluate/rollout.py) gives the policy its own step counter, the same for
+every trial, so under vmap the cond chooses one branch for the whole batch and the steps between plans skip
+the planning; a per-trial condition (a new goal) would run both branches, so a goal new between plans (an env
+that draws one at arrival) waits for the next plan. A caller that gives no step plans every step.
 """
 
 from __future__ import annotations
@@ -42,7 +49,10 @@ UNKNOWN_COST = 0.5                         # extra route cost per metre through 
 UNKNOWN_GAP = 1.0                          # m: an UNKNOWN cell nearer a seen solid than this is not passable: beams
 #                                            leave pockets unseen in a surface they sweep (a slab under a hovering
 #                                            vehicle is hit by one beam), and a pocket is no opening
-SWEEPS = 2                                 # relaxation sweeps of the field per step
+REPLAN = 4                                 # steps between plans when the caller counts them (`sense_and_plan`)
+SWEEPS = 8                                 # relaxation sweeps of the field per plan: two a step, the route bends round
+#                                            a new wall as fast as with two sweeps every step (4 a plan lost ~5 points
+#                                            of gallery success both ways)
 
 _SAMPLES = int(np.ceil(REACH / BEAM_STEP))
 _GRID = np.asarray(flyability.GRID_SHAPE)
@@ -115,22 +125,40 @@ def plan(belief: jax.Array, field: jax.Array, goal: jax.Array, p: EnvParams, swe
 
 
 def own_map(inner=None) -> dict:
-    """The carry of a policy that maps as it flies (`sense_and_plan`): an empty belief, no field yet (made from
-    the goal at the first step), the goal it was made for, and the steered policy's own carry `inner`."""
+    """The carry of a policy that maps as it flies (`sense_and_plan`): an empty belief, no plan yet (the last
+    plan's field and gaps, made from the goal at the first step), the goal it was made for, and the steered
+    policy's own carry `inner`."""
     return {"belief": empty(), "field": jnp.zeros(flyability.GRID_SHAPE, jnp.float32),
+            "gap": jnp.full(flyability.GRID_SHAPE, jnp.inf, jnp.float32),
             "goal": jnp.full(3, jnp.nan, jnp.float32), "inner": inner}
 
 
 def sense_and_plan(p: EnvParams, carry: dict, info: dict) -> tuple[dict, dict]:
-    """(the carry after this step's sensing, `guidance.aim`'s params planned on it): the belief takes the step's
-    beams (`info`: pose, attitude, ranges), the field restarts from the straight line when the goal is new and
-    is relaxed on the belief. `p`: the env's params (the beams' geometry, clearances, arrival)."""
+    """(the carry after this step's sensing, `guidance.aim`'s params): the belief takes the step's beams
+    (`info`: pose, attitude, ranges) every step; a plan (the field restarted from the straight line when the
+    goal is not the last plan's, relaxed on the belief, and its gaps) is made when `info["step"]` is a multiple
+    of REPLAN, else the carry's last plan is read (module doc); without "step" in `info`, every step plans.
+    `p`: the env's params (the beams' geometry, clearances, arrival)."""
     goal = info["goal"]
     ranges = jnp.concatenate([info["ranges"], info["vertical_ranges"]])
     seen = update(carry["belief"], p, info["position"], info["rot"], info["underwater"], ranges)
-    field = jnp.where(jnp.all(goal == carry["goal"]), carry["field"], initial_field(goal))
-    params = plan(seen, field, goal, p)
-    return {**carry, "belief": seen, "field": params["field"], "goal": goal}, params
+
+    def replan(_):
+        new_goal = jnp.any(goal != carry["goal"])    # the first plan's too: the empty carry's goal is NaN
+        params = plan(seen, jnp.where(new_goal, initial_field(goal), carry["field"]), goal, p)
+        return params["field"], params["gap"], goal
+
+    def last(_):
+        return carry["field"], carry["gap"], carry["goal"]
+
+    if "step" not in info:
+        field, gap, planned_for = replan(None)
+    else:
+        # The cond's choice must not depend on the goal: the step is the same for every trial of a rollout, the
+        # goal each trial's own, and under vmap a cond on a per-trial value runs both branches.
+        field, gap, planned_for = jax.lax.cond(info["step"] % REPLAN == 0, replan, last, None)
+    params = {"field": field, "gap": gap, "arrival": jnp.float32(p.arrival_distance)}
+    return {**carry, "belief": seen, "field": field, "gap": gap, "goal": planned_for}, params
 
 
 def frontier(belief: jax.Array) -> jax.Array:

@@ -26,8 +26,9 @@ _COLOURS = {"unknown": (150, 150, 150), "free": (235, 235, 235), "occupied": (30
 
 def replay(params, positions, rots, underwater, ranges, goals) -> dict[str, np.ndarray]:
     """The own map at every step of one trial: {"belief" (T, X, Y, Z) int8, "field" (T, X, Y, Z) float32},
-    from the trial's records (T, ...): positions (3,), rots (3, 3), underwater, ranges (20 + k,) (the fan,
-    then the beams after it) and goals (3,). `params`: the env's (its beams' geometry)."""
+    from the trial's records (T, ...) from its first step on: positions (3,), rots (3, 3), underwater, ranges
+    (20 + k,) (the fan, then the beams after it) and goals (3,); step t plans when the policy's did. `params`:
+    the env's (its beams' geometry)."""
     import jax
     import jax.numpy as jnp
 
@@ -35,11 +36,12 @@ def replay(params, positions, rots, underwater, ranges, goals) -> dict[str, np.n
 
     def step(carry, x):
         info = {"position": x[0], "rot": x[1], "underwater": x[2], "ranges": x[3][:NUM_BEAMS], "vertical_ranges": x[3][NUM_BEAMS:],
-                "goal": x[4]}
+                "goal": x[4], "step": x[5]}
         carry, _ = own_map.sense_and_plan(params, carry, info)
         return carry, (carry["belief"], carry["field"])
 
-    xs = tuple(jnp.asarray(a) for a in (positions, rots, underwater, ranges, goals))
+    steps = jnp.arange(len(positions), dtype=jnp.int32)     # the records start at the trial's first step
+    xs = tuple(jnp.asarray(a) for a in (positions, rots, underwater, ranges, goals)) + (steps,)
     _, (beliefs, fields) = jax.jit(lambda xs: jax.lax.scan(step, own_map.own_map(), xs))(xs)
     return {"belief": np.asarray(beliefs), "field": np.asarray(fields)}
 

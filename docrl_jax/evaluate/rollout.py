@@ -98,6 +98,10 @@ def make_rollout(env, policy, max_steps: int, render: bool = False, from_states:
 
     A policy with `trial_params` (docrl_jax.policy) takes its params with a leading trial axis where its
     `trial_axes` say; `run_trials` and `run_from_states` make them from the trials' initial states.
+
+    The policy's `info` is the env's with "step" the scan's own counter: the env's step count while a trial
+    runs (trials start at step 0), the same for every trial, so under vmap it is one value for the batch and a
+    `lax.cond` on it runs one branch, not both (the own map plans every few steps on it: envs.belief).
     """
     cache_key = _cache_key(env, policy, max_steps, render, from_states)
     if cache_key in _ROLLOUTS:
@@ -108,22 +112,24 @@ def make_rollout(env, policy, max_steps: int, render: bool = False, from_states:
     def episode(params, k_policy, state0):
         carry0 = policy.init_carry()
 
-        def body(c, k):
+        def body(c, x):
             state, pcarry, done = c
-            new_pcarry, action = policy.act(params, pcarry, state.obs, state.info, k)
+            k, t = x
+            # info["step"]: the scan's counter, the env's own while the trial runs, unbatched (make_rollout's doc)
+            pcarry, action = policy.act(params, pcarry, state.obs, {**state.info, "step": t}, k)
             new_state = env.step(state, action)
             keep = lambda new, old: jnp.where(done, old, new)
             next_state = jax.tree.map(keep, new_state, state)
-            next_pcarry = jax.tree.map(keep, new_pcarry, pcarry)
             rec = {"position": next_state.info["position"], "underwater_before": state.info["underwater"],
                    "taken": ~done, "action": jnp.where(done, 0.0, jnp.asarray(action, jnp.float32)),
                    "reward": jnp.where(done, 0.0, new_state.reward)}
             if render:
                 rec.update(_render_records(next_state))
-            return (next_state, next_pcarry, done | new_state.done), rec
+            # The policy's carry goes on past the end: its actions there are dropped and the state stays frozen.
+            return (next_state, pcarry, done | new_state.done), rec
 
-        keys = jax.random.split(k_policy, max_steps)
-        (final, _, _), rec = jax.lax.scan(body, (state0, carry0, jnp.zeros((), bool)), keys)
+        xs = (jax.random.split(k_policy, max_steps), jnp.arange(max_steps, dtype=jnp.int32))
+        (final, _, _), rec = jax.lax.scan(body, (state0, carry0, jnp.zeros((), bool)), xs)
         info = final.info
         out = {
             "positions": jnp.concatenate([state0.info["position"][None], rec["position"]], 0),

@@ -136,3 +136,55 @@ def test_the_own_map_is_the_same_under_vmap_and_alone():
                                                                   jax.tree.map(lambda x: x[1], states.info))
     np.testing.assert_array_equal(np.asarray(batched["belief"][1]), np.asarray(one["belief"]))
     np.testing.assert_allclose(np.asarray(plans["field"][1]), np.asarray(plan["field"]), rtol=1e-6)
+
+
+def test_the_map_takes_every_step_and_the_route_is_planned_every_replan_steps(monkeypatch):
+    """With the episode's step in `info`, the belief takes every step's beams (a chain of `update`) while the
+    plan (field and gaps) changes only at steps 0, REPLAN, 2 REPLAN, ..., where it is `plan` of that step's belief
+    from the last plan's field; without a step, every step plans. Under vmap a step shared by the batch keeps
+    the cond (one branch runs), a per-trial one does not."""
+    monkeypatch.setattr(belief, "REPLAN", 3)
+    env = _env("dead_end_u")
+    p = env.params
+    state = jax.jit(env.reset)(jax.random.PRNGKey(1))
+    _, infos = jax.jit(lambda s: jax.lax.scan(lambda s, _: (env.step(s, jnp.asarray([0.6, 0.8, 0.0])), s.info),
+                                              s, None, length=8))(state)
+    np.testing.assert_array_equal(np.asarray(infos["step"]), np.arange(8))   # the env's own count
+
+    def fly(given):
+        def one(carry, info):
+            carry, plan = belief.sense_and_plan(p, carry, info if given else {k: v for k, v in info.items() if k != "step"})
+            return carry, (carry["belief"], plan["field"], plan["gap"])
+        return [np.asarray(a) for a in jax.jit(lambda xs: jax.lax.scan(one, belief.own_map(), xs)[1])(infos)]
+
+    beliefs, fields, gaps = fly(True)
+    ranges = jnp.concatenate([infos["ranges"], infos["vertical_ranges"]], -1)
+    b = belief.empty()
+    goal = infos["goal"][0]
+    planned = jax.jit(lambda b, f: belief.plan(b, f, goal, p))
+    last = belief.initial_field(goal)
+    for t in range(8):
+        b = belief.update(b, p, infos["position"][t], infos["rot"][t], infos["underwater"][t], ranges[t])
+        np.testing.assert_array_equal(beliefs[t], np.asarray(b))
+        if t % 3 == 0:
+            want = planned(b, last)
+            np.testing.assert_allclose(fields[t], np.asarray(want["field"]), rtol=1e-6)
+            np.testing.assert_array_equal(gaps[t], np.asarray(want["gap"]))
+            last = want["field"]
+        else:
+            np.testing.assert_array_equal(fields[t], fields[t - 1])
+            np.testing.assert_array_equal(gaps[t], gaps[t - 1])
+    # The beams showed something new between plans, and each plan moved the field: the cadence is visible.
+    assert any(np.any(beliefs[t] != beliefs[t - 1]) for t in (1, 2, 4, 5, 7))
+    assert all(np.any(fields[t] != fields[t - 1]) for t in (3, 6))
+    every = fly(False)[1]
+    assert np.any(every[1] != every[0]) and np.any(every[1] != fields[1])
+
+    carries = jax.vmap(lambda _: belief.own_map())(jnp.arange(2))
+    info2 = jax.tree.map(lambda x: jnp.stack([x[0], x[0]]), infos)
+
+    def traced(step_axis):
+        axes = {k: (step_axis if k == "step" else 0) for k in info2}
+        info = {**info2, "step": info2["step"][0]} if step_axis is None else info2
+        return str(jax.make_jaxpr(jax.vmap(lambda c, i: belief.sense_and_plan(p, c, i), in_axes=(0, axes)))(carries, info))
+    assert "cond[" in traced(None) and "cond[" not in traced(0)

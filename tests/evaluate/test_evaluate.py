@@ -566,3 +566,44 @@ def test_cli_run_is_flown_in_its_vehicle(fake_trainer, tmp_path):
     assert row["compile_s"] is None
     saved = np.load(out / "trajectories_s1_air_to_water_seed0.npz")
     np.testing.assert_array_equal(saved["positions"], trials["positions"].astype(np.float32))
+
+
+class _CountingEnv:
+    """A stand-in env for make_rollout's contract: it only counts its steps (its own "step" offset by 100 so
+    the policy's can be told from it) and never ends."""
+    control_dt = 0.1
+
+    def _state(self, steps):
+        import jax.numpy as jnp
+        no = jnp.zeros((), bool)
+        info = {"position": jnp.zeros(3), "underwater": no, "step": steps + 100, "arrived": no, "collision": no,
+                "out_of_bounds": no, "terminated": no, "distance": jnp.float32(1.0)}
+        return envs.EnvState(sim=steps, obs=jnp.zeros(26), reward=jnp.float32(0.0), done=no, info=info)
+
+    def reset_to(self, key, position, yaw, goal):
+        return self._state(jax.numpy.zeros((), jax.numpy.int32))
+
+    def step(self, state, action):
+        return self._state(state.sim + 1)
+
+
+def test_the_policy_is_given_the_rollouts_step_one_value_for_all_trials():
+    """make_rollout's policy reads info["step"] = the scan's counter (0, 1, ...), the same for every trial: under
+    vmap a cond on it stays a cond (one branch runs); on a per-trial value vmap turns it into a select."""
+    import jax.numpy as jnp
+
+    from docrl_jax.policy import Policy
+
+    def act(params, carry, obs, info, key):
+        parity = jax.lax.cond(info["step"] % 2 == 0, lambda: 1.0, lambda: -1.0)
+        return carry, jnp.stack([info["step"].astype(jnp.float32), parity, 0.0])
+
+    policy = Policy(name="step echo", params=None, init_carry=lambda: jnp.zeros(()), act=act)
+    fn = evaluate.make_rollout(_CountingEnv(), policy, 6)
+    args = (None, jax.random.split(jax.random.PRNGKey(0), 3), jnp.zeros((3, 3)), jnp.zeros(3), jnp.zeros(3))
+    actions = np.asarray(fn(*args)["actions"])
+    np.testing.assert_array_equal(actions[..., 0], np.tile(np.arange(6), (3, 1)))
+    np.testing.assert_array_equal(actions[..., 1], np.tile([1, -1, 1, -1, 1, -1], (3, 1)))
+    assert "cond[" in str(jax.make_jaxpr(fn)(*args))
+    per_trial = jax.make_jaxpr(jax.vmap(lambda s: act(None, None, None, {"step": s}, None)[1]))(jnp.arange(3))
+    assert "cond[" not in str(per_trial)
