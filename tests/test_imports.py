@@ -152,3 +152,9 @@ def test_tests_mirror_the_package_and_no_test_imports_another():
     for path in root.rglob("*.py"):
         text = path.read_text()
         assert not re.search(r"^\s*(from (tests\.)?test_\w+ import|import (tests\.)?test_\w+)", text, re.M), path
+
+
+def test_no_module_is_longer_than_400_lines():
+    root = Path(__file__).resolve().parent.parent / "docrl_jax"
+    long = {str(p.relative_to(root)): n for p in root.rglob("*.py") if (n := len(p.read_text().splitlines())) > 400}
+    assert not long, long
