@@ -29,7 +29,7 @@ from docrl_jax.train.evaluation import eval_keys
 from docrl_jax.train.programs import compile_programs
 
 STEPS = 160_000
-PROCEDURAL_STEPS = 128_000
+PROCEDURAL_STEPS = 96_000
 MARGIN = 0.5
 # packaged td3_lstm (configs/td3_lstm.yaml): n-step targets (5 there; here the trained steps per sequence,
 # seq_len 4 - burn_in 2), LayerNorm critics, rates 2e-3
@@ -65,7 +65,9 @@ def test_td3_lstm_learns_in_tiny_procedural_tanks_from_a_level_pool_under_random
     # observation latency): the pool, its refreshes inside the program and the randomisation must leave
     # the task learnable. The evaluation's episodes draw their own layouts (the env's generator). With
     # LEVERS, on 2 cores of the AMD EPYC CPU: 0.86 / 0.92 / 0.94 after 96k / 128k / 160k env steps of a 160k
-    # run, 0.91 at the end of this 128k one; untrained 0-0.02.
+    # run, 0.91 at the end of a 128k one, 0.875 at the end of this 96k one; untrained 0-0.02. 96k, not more:
+    # the margin asked (0.5 over the untrained actor on the same episodes) is met with 0.37 to spare, and a
+    # run that does not learn ends where the untrained actor is (learning rates 0 freeze it), 0.5 short.
     raw = easy_raw(env__scenario=0, env__layout_boxes=[0, 1], env__layout_capsules=[0, 1],
                    env__layout_beam_fraction=0.0, env__dr_motor_tau_scale=[1.0, 2.0],
                    env__dr_thrust_air_scale=[0.9, 1.1], env__dr_obs_latency=[0, 1],
